@@ -1,0 +1,140 @@
+//! Which places a robot can drive between: an occupancy grid inflated by the robot's
+//! clearance radius, labelled into connected components (4-connected breadth-first search).
+//! Built once per world; after that "can the robot get from A to B" is two look-ups.
+
+use crate::geometry::{Rect, Vec2};
+use crate::world::World;
+use std::collections::VecDeque;
+
+/// Connected free space of a world for a disc-shaped robot.
+#[derive(Clone, Debug)]
+pub struct ReachabilityGrid {
+    origin: Vec2,
+    resolution: f32,
+    width: usize,
+    height: usize,
+    /// 0: blocked; otherwise the component label.
+    labels: Vec<u32>,
+}
+
+impl ReachabilityGrid {
+    /// Rasterises `area` of `world` at `resolution`, marking a cell free when its centre is at
+    /// least `radius` (plus half a cell diagonal, so that moving between free cell centres
+    /// keeps the clearance) from every obstacle, then labels components.
+    pub fn new(world: &World, area: Rect, radius: f32, resolution: f32) -> Self {
+        let size = area.size();
+        let width = ((size.x / resolution).ceil() as usize).max(1);
+        let height = ((size.y / resolution).ceil() as usize).max(1);
+        let mut blocked = vec![false; width * height];
+        let inflation = radius + resolution * std::f32::consts::FRAC_1_SQRT_2;
+        let centre =
+            |ix: usize, iy: usize| area.min + Vec2::new((ix as f32 + 0.5) * resolution, (iy as f32 + 0.5) * resolution);
+        // Obstacle-major: only the cells near each obstacle are tested against it.
+        for o in world.obstacles() {
+            let reach = o.bound_radius + inflation;
+            let lo = ((o.bound_center - Vec2::splat(reach) - area.min) / resolution).floor();
+            let hi = ((o.bound_center + Vec2::splat(reach) - area.min) / resolution).ceil();
+            let (x0, x1) = (lo.x.max(0.0) as usize, (hi.x.max(0.0) as usize).min(width));
+            let (y0, y1) = (lo.y.max(0.0) as usize, (hi.y.max(0.0) as usize).min(height));
+            for iy in y0..y1 {
+                for ix in x0..x1 {
+                    let cell = &mut blocked[iy * width + ix];
+                    if !*cell && o.primitive.signed_distance(centre(ix, iy)) < inflation {
+                        *cell = true;
+                    }
+                }
+            }
+        }
+        let mut labels = vec![0u32; width * height];
+        let mut next = 0u32;
+        let mut queue = VecDeque::new();
+        for seed in 0..labels.len() {
+            if blocked[seed] || labels[seed] != 0 {
+                continue;
+            }
+            next += 1;
+            labels[seed] = next;
+            queue.push_back(seed);
+            while let Some(c) = queue.pop_front() {
+                let (x, y) = (c % width, c / width);
+                let mut visit = |n: usize| {
+                    if !blocked[n] && labels[n] == 0 {
+                        labels[n] = next;
+                        queue.push_back(n);
+                    }
+                };
+                if x > 0 {
+                    visit(c - 1);
+                }
+                if x + 1 < width {
+                    visit(c + 1);
+                }
+                if y > 0 {
+                    visit(c - width);
+                }
+                if y + 1 < height {
+                    visit(c + width);
+                }
+            }
+        }
+        Self { origin: area.min, resolution, width, height, labels }
+    }
+
+    /// Component label of the cell containing `p` (0 if blocked or outside).
+    pub fn label(&self, p: Vec2) -> u32 {
+        let q = (p - self.origin) / self.resolution;
+        if q.x < 0.0 || q.y < 0.0 {
+            return 0;
+        }
+        let (ix, iy) = (q.x as usize, q.y as usize);
+        if ix >= self.width || iy >= self.height {
+            return 0;
+        }
+        self.labels[iy * self.width + ix]
+    }
+
+    /// Whether a robot can drive from `a` to `b` keeping its clearance.
+    pub fn connected(&self, a: Vec2, b: Vec2) -> bool {
+        let la = self.label(a);
+        la != 0 && la == self.label(b)
+    }
+
+    /// Fraction of cells that are free.
+    pub fn free_fraction(&self) -> f32 {
+        self.labels.iter().filter(|l| **l != 0).count() as f32 / self.labels.len() as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Obstacle, ObstacleSpec};
+
+    fn walls(w: f32, extra: Vec<ObstacleSpec>) -> World {
+        let h = w / 2.0;
+        let mut v = vec![
+            ObstacleSpec::Wall { from: [-h, -h], to: [h, -h] },
+            ObstacleSpec::Wall { from: [h, -h], to: [h, h] },
+            ObstacleSpec::Wall { from: [h, h], to: [-h, h] },
+            ObstacleSpec::Wall { from: [-h, h], to: [-h, -h] },
+        ];
+        v.extend(extra);
+        World::new(v.into_iter().map(|s| Obstacle::new(s).unwrap()).collect())
+    }
+
+    #[test]
+    fn a_dividing_wall_with_a_gap() {
+        let area = Rect { min: Vec2::splat(-2.0), max: Vec2::splat(2.0) };
+        // Wall across the room with a 0.6 m gap at the top.
+        let w = walls(4.0, vec![ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 1.4] }]);
+        let g = ReachabilityGrid::new(&w, area, 0.2, 0.05);
+        let (a, b) = (Vec2::new(-1.0, 0.0), Vec2::new(1.0, 0.0));
+        assert!(g.connected(a, b), "0.6 m gap lets a 0.2 m-radius robot through");
+        // Free: two halves of about 1.7 x 3.5 m of a 4 x 4 m grid.
+        assert!((0.6..0.8).contains(&g.free_fraction()), "{}", g.free_fraction());
+        let g = ReachabilityGrid::new(&w, area, 0.35, 0.05);
+        assert!(!g.connected(a, b), "too narrow for 0.35 m");
+        assert_eq!(g.label(Vec2::new(0.0, 0.0)), 0, "on the wall");
+        assert_eq!(g.label(Vec2::new(5.0, 0.0)), 0, "outside");
+    }
+}

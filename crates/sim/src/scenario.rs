@@ -1,0 +1,531 @@
+//! Scenarios: the static world (arena walls, obstacles, optionally a procedural generator),
+//! the robot, and where episodes start and end. Shipped scenarios live in `scenarios/` and are
+//! embedded in the binary.
+
+use crate::config::{ConfigError, Invalid, Validate, check_interval, check_range, preset_or_file};
+use crate::geometry::{Obstacle, ObstacleSpec, Pose2, Rect, Vec2};
+use crate::reachability::ReachabilityGrid;
+use crate::world::World;
+use rand::RngExt;
+use serde::{Deserialize, Serialize};
+use std::f32::consts::{PI, TAU};
+use std::sync::Arc;
+
+/// The scenarios shipped in `scenarios/`: `(name, yaml)`.
+pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
+    ("empty-room", include_str!("../../../scenarios/empty-room.yaml")),
+    ("static-room", include_str!("../../../scenarios/static-room.yaml")),
+    ("random-static", include_str!("../../../scenarios/random-static.yaml")),
+];
+
+/// A walled rectangular arena.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArenaSpec {
+    /// `[width, height]` (m).
+    pub size: [f32; 2],
+    /// Centre `[x, y]` (m), default the origin.
+    #[serde(default)]
+    pub center: [f32; 2],
+    /// Whether the arena's border is walled (default true).
+    #[serde(default = "yes")]
+    pub walls: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl ArenaSpec {
+    /// The arena rectangle.
+    pub fn rect(&self) -> Rect {
+        let c = Vec2::new(self.center[0], self.center[1]);
+        let h = Vec2::new(self.size[0], self.size[1]) * 0.5;
+        Rect { min: c - h, max: c + h }
+    }
+
+    /// The four border walls.
+    pub fn wall_specs(&self) -> Vec<ObstacleSpec> {
+        let r = self.rect();
+        let c = [[r.min.x, r.min.y], [r.max.x, r.min.y], [r.max.x, r.max.y], [r.min.x, r.max.y]];
+        (0..4).map(|i| ObstacleSpec::Wall { from: c[i], to: c[(i + 1) % 4] }).collect()
+    }
+}
+
+/// Where a start or a goal is placed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Placement {
+    /// Anywhere in free space inside the arena (or the world's bounds), random yaw.
+    Free,
+    /// Uniformly inside a rectangle, in free space, random yaw.
+    Region {
+        /// Lower-left corner `[x, y]`.
+        min: [f32; 2],
+        /// Upper-right corner `[x, y]`.
+        max: [f32; 2],
+    },
+    /// One of these positions `[[x, y], ...]`, random yaw.
+    Points(Vec<[f32; 2]>),
+    /// One of these poses `[[x, y, yaw], ...]`.
+    Poses(Vec<Pose2>),
+}
+
+/// Shapes the generator may place.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ShapeKind {
+    /// Cylinders.
+    Circle,
+    /// Oriented boxes.
+    Box,
+    /// Random convex polygons (3 to 6 vertices).
+    Polygon,
+}
+
+/// A procedural generator of static obstacles inside the arena, run for every episode.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GeneratorSpec {
+    /// Number of obstacles `[min, max]` (default [4, 10]).
+    pub count: [u32; 2],
+    /// Obstacle size `[min, max]` (m): radius of a cylinder, half-size of a box or polygon
+    /// (default [0.1, 0.5]).
+    pub size: [f32; 2],
+    /// Shapes to draw from, uniformly (default all).
+    pub shapes: Vec<ShapeKind>,
+    /// Smallest gap between two obstacles' bounding circles and between an obstacle and the
+    /// arena walls (m, default 0.8), so that the robot can pass between any two.
+    pub min_clearance: f32,
+}
+
+impl Default for GeneratorSpec {
+    fn default() -> Self {
+        Self {
+            count: [4, 10],
+            size: [0.1, 0.5],
+            shapes: vec![ShapeKind::Circle, ShapeKind::Box, ShapeKind::Polygon],
+            min_clearance: 0.8,
+        }
+    }
+}
+
+/// A scenario file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioSpec {
+    /// Name.
+    pub name: String,
+    /// What it is.
+    #[serde(default)]
+    pub description: String,
+    /// Robot preset name or robot file (default `jetbot`).
+    #[serde(default = "default_robot")]
+    pub robot: String,
+    /// A walled rectangular arena.
+    #[serde(default)]
+    pub arena: Option<ArenaSpec>,
+    /// Static obstacles and walls, in world coordinates.
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleSpec>,
+    /// Random obstacles drawn anew for every episode (needs `arena`).
+    #[serde(default)]
+    pub procedural: Option<GeneratorSpec>,
+    /// Where episodes start (default `free`).
+    #[serde(default = "free")]
+    pub start: Placement,
+    /// Where goals are (default `free`).
+    #[serde(default = "free")]
+    pub goal: Placement,
+    /// Allowed straight-line start–goal distance `[min, max]` (m, default [1, 5]).
+    #[serde(default = "default_distance")]
+    pub start_goal_distance: [f32; 2],
+    /// Extra free space required around start and goal beyond the robot's clearance radius
+    /// (m, default 0.1).
+    #[serde(default = "default_margin")]
+    pub margin: f32,
+    /// Moving obstacles and people. Reserved: this build simulates static scenes only, and
+    /// rejects a non-empty list rather than silently ignoring it.
+    #[serde(default)]
+    pub movers: Vec<serde_norway::Value>,
+}
+
+fn default_robot() -> String {
+    "jetbot".into()
+}
+fn free() -> Placement {
+    Placement::Free
+}
+fn default_distance() -> [f32; 2] {
+    [1.0, 5.0]
+}
+fn default_margin() -> f32 {
+    0.1
+}
+
+impl Validate for ScenarioSpec {
+    fn validate(&self) -> Result<(), Invalid> {
+        if let Some(a) = &self.arena {
+            check_range("arena.size[0]", a.size[0], 0.5, 1000.0)?;
+            check_range("arena.size[1]", a.size[1], 0.5, 1000.0)?;
+            if !a.center.iter().all(|c| c.is_finite()) {
+                return Err(Invalid::new("arena.center", "finite [x, y]"));
+            }
+        }
+        for (i, o) in self.obstacles.iter().enumerate() {
+            o.validate().map_err(|e| e.under(&format!("obstacles[{i}]")))?;
+        }
+        if let Some(g) = &self.procedural {
+            if self.arena.is_none() {
+                return Err(Invalid::new("procedural", "an `arena` to generate obstacles in"));
+            }
+            if g.count[0] > g.count[1] || g.count[1] > 1000 {
+                return Err(Invalid::new("procedural.count", "[min, max] with min <= max <= 1000"));
+            }
+            check_interval("procedural.size", g.size, 0.01, 100.0)?;
+            if g.shapes.is_empty() {
+                return Err(Invalid::new("procedural.shapes", "at least one of circle, box, polygon"));
+            }
+            check_range("procedural.min_clearance", g.min_clearance, 0.0, 100.0)?;
+        }
+        for (key, p) in [("start", &self.start), ("goal", &self.goal)] {
+            match p {
+                Placement::Region { min, max }
+                    if !(min[0] < max[0] && min[1] < max[1] && min.iter().chain(max).all(|v| v.is_finite())) =>
+                {
+                    return Err(Invalid::new(format!("{key}.region"), "min < max, finite"));
+                }
+                Placement::Points(v) if v.is_empty() => {
+                    return Err(Invalid::new(format!("{key}.points"), "at least one point"));
+                }
+                Placement::Poses(v) if v.is_empty() => {
+                    return Err(Invalid::new(format!("{key}.poses"), "at least one pose"));
+                }
+                Placement::Free if self.arena.is_none() && self.obstacles.is_empty() => {
+                    return Err(Invalid::new(key, "an `arena` or obstacles to bound `free` placement"));
+                }
+                _ => {}
+            }
+        }
+        check_interval("start_goal_distance", self.start_goal_distance, 0.0, 10_000.0)?;
+        check_range("margin", self.margin, 0.0, 10.0)?;
+        if !self.movers.is_empty() {
+            return Err(Invalid::new(
+                "movers",
+                "an empty list: moving obstacles and people are not simulated by this build yet",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl ScenarioSpec {
+    /// A shipped scenario by name, or a YAML file by path.
+    pub fn load(name_or_path: &str) -> Result<Self, ConfigError> {
+        preset_or_file("scenario", SCENARIO_PRESETS, name_or_path)
+    }
+}
+
+/// One episode's setting: the world, where the robot starts, where the goal is.
+#[derive(Clone, Debug)]
+pub struct EpisodeSetup {
+    /// The world (shared between environments when the scenario has no generator).
+    pub world: Arc<World>,
+    /// Start pose of `base_link`.
+    pub start: Pose2,
+    /// Goal position.
+    pub goal: Vec2,
+}
+
+/// Why no episode could be drawn.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("scenario `{scenario}`: no valid start/goal pair found ({reason})")]
+pub struct NoEpisode {
+    /// Scenario name.
+    pub scenario: String,
+    /// What kept failing.
+    pub reason: String,
+}
+
+/// A compiled scenario for a robot of a given clearance radius: ready to draw episodes.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    spec: ScenarioSpec,
+    area: Rect,
+    fixed: Vec<Obstacle>,
+    /// World and reachability of a scenario without a generator (built once).
+    fixed_world: Option<(Arc<World>, Arc<ReachabilityGrid>)>,
+    clearance: f32,
+}
+
+/// Grid cell size for reachability checks (m).
+const GRID_RESOLUTION: f32 = 0.05;
+/// Placement attempts per world before a generated world is redrawn.
+const PLACEMENT_TRIES: usize = 200;
+/// Worlds drawn before giving up.
+const WORLD_TRIES: usize = 50;
+
+impl Scenario {
+    /// Compiles `spec` for a robot that needs `clearance` metres of free space around its
+    /// centre (its footprint radius, or the collision range, whichever is larger). Checks
+    /// that episodes can be drawn.
+    pub fn new(spec: ScenarioSpec, clearance: f32) -> Result<Self, ConfigError> {
+        let file = format!("<scenario {}>", spec.name);
+        spec.validate().map_err(|e| e.in_file(&file))?;
+        let mut fixed_specs = spec.arena.iter().filter(|a| a.walls).flat_map(|a| a.wall_specs()).collect::<Vec<_>>();
+        fixed_specs.extend(spec.obstacles.iter().cloned());
+        let fixed = fixed_specs
+            .into_iter()
+            .enumerate()
+            .map(|(i, s)| Obstacle::new(s).map_err(|e| e.under(&format!("obstacles[{i}]")).in_file(&file)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let area = match &spec.arena {
+            Some(a) => a.rect(),
+            None => World::new(fixed.clone()).bounds(),
+        };
+        let clearance = clearance + spec.margin;
+        let fixed_world = if spec.procedural.is_none() {
+            let world = World::new(fixed.clone());
+            let grid = ReachabilityGrid::new(&world, area, clearance, GRID_RESOLUTION);
+            Some((Arc::new(world), Arc::new(grid)))
+        } else {
+            None
+        };
+        let s = Self { spec, area, fixed, fixed_world, clearance };
+        // Fail at load time, with the file named, rather than at the first reset.
+        let mut rng = rand_pcg::Pcg64Mcg::new(0x5eed);
+        for _ in 0..3 {
+            s.sample(&mut rng).map_err(|e| ConfigError::Invalid {
+                file: file.clone(),
+                key: "start/goal".into(),
+                expected: format!("placements that admit a reachable start and goal: {}", e.reason),
+            })?;
+        }
+        Ok(s)
+    }
+
+    /// The spec.
+    pub fn spec(&self) -> &ScenarioSpec {
+        &self.spec
+    }
+
+    /// The area starts, goals and generated obstacles are drawn in.
+    pub fn area(&self) -> Rect {
+        self.area
+    }
+
+    /// Free space required around the robot's centre at start and goal and along the way.
+    pub fn clearance(&self) -> f32 {
+        self.clearance
+    }
+
+    /// Draws one episode: a world (generated if the scenario has a generator), and a start and
+    /// goal in free space, the requested distance apart, connected for the robot.
+    pub fn sample<R: rand::Rng>(&self, rng: &mut R) -> Result<EpisodeSetup, NoEpisode> {
+        let mut reason = String::new();
+        for _ in 0..WORLD_TRIES {
+            let (world, grid) = match &self.fixed_world {
+                Some((w, g)) => (w.clone(), g.clone()),
+                None => {
+                    let w = self.generate(rng);
+                    let g = ReachabilityGrid::new(&w, self.area, self.clearance, GRID_RESOLUTION);
+                    (Arc::new(w), Arc::new(g))
+                }
+            };
+            match self.place(&world, &grid, rng) {
+                Ok((start, goal)) => return Ok(EpisodeSetup { world, start, goal }),
+                Err(r) => reason = r,
+            }
+            if self.fixed_world.is_some() {
+                break;
+            }
+        }
+        Err(NoEpisode { scenario: self.spec.name.clone(), reason })
+    }
+
+    fn place<R: rand::Rng>(
+        &self,
+        world: &World,
+        grid: &ReachabilityGrid,
+        rng: &mut R,
+    ) -> Result<(Pose2, Vec2), String> {
+        let [dmin, dmax] = self.spec.start_goal_distance;
+        let mut free_start = 0;
+        for _ in 0..PLACEMENT_TRIES {
+            let start = self.draw(&self.spec.start, rng);
+            if grid.label(start.position()) == 0 || !world.is_clear(start.position(), self.clearance) {
+                continue;
+            }
+            free_start += 1;
+            for _ in 0..PLACEMENT_TRIES / 4 {
+                let goal = self.draw(&self.spec.goal, rng).position();
+                let d = (goal - start.position()).length();
+                if d >= dmin
+                    && d <= dmax
+                    && grid.connected(start.position(), goal)
+                    && world.is_clear(goal, self.clearance)
+                {
+                    return Ok((start, goal));
+                }
+            }
+        }
+        Err(if free_start == 0 {
+            format!("no start position with {:.2} m clearance", self.clearance)
+        } else {
+            format!("no goal reachable from the start between {dmin} and {dmax} m away")
+        })
+    }
+
+    fn draw<R: rand::Rng>(&self, p: &Placement, rng: &mut R) -> Pose2 {
+        let random_yaw = |rng: &mut R| rng.random_range(-PI..PI);
+        match p {
+            Placement::Free => {
+                let a = self.area;
+                Pose2::new(rng.random_range(a.min.x..a.max.x), rng.random_range(a.min.y..a.max.y), random_yaw(rng))
+            }
+            Placement::Region { min, max } => {
+                Pose2::new(rng.random_range(min[0]..max[0]), rng.random_range(min[1]..max[1]), random_yaw(rng))
+            }
+            Placement::Points(v) => {
+                let p = v[rng.random_range(0..v.len())];
+                Pose2::new(p[0], p[1], random_yaw(rng))
+            }
+            Placement::Poses(v) => v[rng.random_range(0..v.len())],
+        }
+    }
+
+    /// Draws a world: the fixed obstacles plus generated ones.
+    pub fn generate<R: rand::Rng>(&self, rng: &mut R) -> World {
+        let mut obstacles = self.fixed.clone();
+        let Some(g) = &self.spec.procedural else {
+            return World::new(obstacles);
+        };
+        let count = rng.random_range(g.count[0]..=g.count[1]);
+        let mut placed: Vec<(Vec2, f32)> = Vec::new();
+        for _ in 0..count {
+            for _attempt in 0..50 {
+                let size = rng.random_range(g.size[0]..=g.size[1]);
+                let inset = size + g.min_clearance;
+                let (lo, hi) = (self.area.min + Vec2::splat(inset), self.area.max - Vec2::splat(inset));
+                if lo.x >= hi.x || lo.y >= hi.y {
+                    break;
+                }
+                let c = Vec2::new(rng.random_range(lo.x..hi.x), rng.random_range(lo.y..hi.y));
+                if placed.iter().any(|(pc, pr)| (*pc - c).length() < pr + size + g.min_clearance) {
+                    continue;
+                }
+                let kind = g.shapes[rng.random_range(0..g.shapes.len())];
+                let spec = match kind {
+                    ShapeKind::Circle => ObstacleSpec::Circle { center: c.into(), radius: size },
+                    ShapeKind::Box => {
+                        // Side lengths between half and full of the size class, any rotation;
+                        // the half-diagonal stays within `size`.
+                        let sx = rng.random_range(0.5..=1.0f32) * size * std::f32::consts::SQRT_2;
+                        let sy = rng.random_range(0.5..=1.0f32) * size * std::f32::consts::SQRT_2;
+                        ObstacleSpec::Box { center: c.into(), size: [sx, sy], yaw: rng.random_range(-PI..PI) }
+                    }
+                    ShapeKind::Polygon => {
+                        let n = rng.random_range(3..=6usize);
+                        let mut angles: Vec<f32> = (0..n).map(|_| rng.random_range(0.0..TAU)).collect();
+                        angles.sort_by(f32::total_cmp);
+                        // Keep vertices spread out so the polygon has area.
+                        for (i, a) in angles.iter_mut().enumerate() {
+                            *a = 0.5 * *a + 0.5 * (i as f32 * TAU / n as f32);
+                        }
+                        let pts = angles
+                            .iter()
+                            .map(|a| {
+                                let r = rng.random_range(0.6..=1.0f32) * size;
+                                [c.x + r * a.cos(), c.y + r * a.sin()]
+                            })
+                            .collect();
+                        ObstacleSpec::Polygon { points: pts }
+                    }
+                };
+                // Points on a circle in angular order always form a convex polygon; a
+                // degenerate one (rounding) is simply redrawn.
+                if let Ok(o) = Obstacle::new(spec) {
+                    placed.push((c, size));
+                    obstacles.push(o);
+                    break;
+                }
+            }
+        }
+        World::new(obstacles)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn presets_compile_and_sample() {
+        for (name, _) in SCENARIO_PRESETS {
+            let spec = ScenarioSpec::load(name).unwrap();
+            let s = Scenario::new(spec, 0.25).unwrap();
+            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(1);
+            for _ in 0..20 {
+                let e = s.sample(&mut rng).unwrap();
+                let d = (e.goal - e.start.position()).length();
+                let [lo, hi] = s.spec().start_goal_distance;
+                assert!(d >= lo && d <= hi);
+                assert!(e.world.clearance(e.start.position()) >= s.clearance());
+                assert!(e.world.clearance(e.goal) >= s.clearance());
+            }
+        }
+    }
+
+    #[test]
+    fn generator_respects_counts_sizes_and_clearance() {
+        let spec = ScenarioSpec::load("random-static").unwrap();
+        let g = spec.procedural.clone().unwrap();
+        let s = Scenario::new(spec, 0.25).unwrap();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(9);
+        let walls = 4;
+        for _ in 0..50 {
+            let w = s.generate(&mut rng);
+            let gen_obs = &w.obstacles()[walls..];
+            assert!(gen_obs.len() <= g.count[1] as usize);
+            for (i, a) in gen_obs.iter().enumerate() {
+                assert!(s.area().contains(a.bound_center));
+                // Gaps to the walls and to every other obstacle, exactly (parry2d).
+                for b in w.obstacles()[..walls].iter().chain(&gen_obs[i + 1..]) {
+                    let gap = parry2d::query::distance(&a.pose, a.shape.as_ref(), &b.pose, b.shape.as_ref())
+                        .unwrap()
+                        .distance;
+                    assert!(gap >= g.min_clearance - 1e-4, "gap {gap} between {:?} and {:?}", a.spec, b.spec);
+                }
+                let size = match &a.spec {
+                    ObstacleSpec::Circle { radius, .. } => *radius,
+                    ObstacleSpec::Box { size, .. } => size[0].hypot(size[1]) / 2.0,
+                    ObstacleSpec::Polygon { points } => {
+                        // Longest chord / 2 bounds the generating radius from below.
+                        let d =
+                            points.iter().flat_map(|p| points.iter().map(move |q| (p[0] - q[0]).hypot(p[1] - q[1])));
+                        d.fold(0.0, f32::max) / 2.0
+                    }
+                    ObstacleSpec::Wall { .. } => unreachable!("the generator makes no walls"),
+                };
+                assert!(size <= g.size[1] * 1.0001, "{:?}", a.spec);
+            }
+        }
+        // Same seed, same worlds.
+        let a = s.generate(&mut rand_pcg::Pcg64Mcg::seed_from_u64(5));
+        let b = s.generate(&mut rand_pcg::Pcg64Mcg::seed_from_u64(5));
+        assert_eq!(
+            a.obstacles().iter().map(|o| o.spec.clone()).collect::<Vec<_>>(),
+            b.obstacles().iter().map(|o| o.spec.clone()).collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn unreachable_goal_is_an_error_naming_the_scenario() {
+        let yaml = "name: split\narena: {size: [4, 4]}\nobstacles:\n  - wall: {from: [0, -2], to: [0, 2]}\n\
+                    start: {region: {min: [-1.8, -1.8], max: [-0.5, 1.8]}}\ngoal: {region: {min: [0.5, -1.8], max: [1.8, 1.8]}}\n";
+        let spec: ScenarioSpec = crate::config::from_yaml_str("split.yaml", yaml).unwrap();
+        let err = Scenario::new(spec, 0.2).unwrap_err().to_string();
+        assert!(err.contains("<scenario split>") && err.contains("no goal reachable"), "{err}");
+    }
+}

@@ -1,0 +1,732 @@
+//! The navigation task: what the policy observes, how its action becomes a velocity command,
+//! the reward, and when an episode ends. One [`NavEnv`] is one robot in one world.
+
+use crate::config::{ConfigError, Invalid, Validate, check_interval, check_positive, check_range, from_yaml_file};
+use crate::controller::{Controller, LaserScan, RobotObservation, Twist};
+use crate::geometry::{Pose2, Vec2, wrap_angle};
+use crate::lidar::{Lidar, min_pool};
+use crate::robot::{DiffDrive, DriveParams, Footprint, RobotSpec};
+use crate::scenario::{NoEpisode, Scenario, ScenarioSpec};
+use crate::world::World;
+use rand::SeedableRng;
+use rand_pcg::Pcg64Mcg;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::sync::Arc;
+
+/// One term of the observation vector.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ObsTerm {
+    /// Lidar ranges, min-pooled from the robot's beams down to `beams` (which must divide the
+    /// robot's beam count), clipped to `clip`; a beam with no return reads `clip[1]`.
+    Lidar {
+        /// Values after pooling.
+        beams: usize,
+        /// `[min, max]` (m).
+        clip: [f32; 2],
+    },
+    /// Distance to the goal (m).
+    GoalDistance,
+    /// Bearing of the goal in the robot frame (rad, (-π, π]).
+    GoalBearing,
+    /// The previous command's linear velocity (m/s).
+    LastLinear,
+    /// The previous command's angular velocity (rad/s).
+    LastAngular,
+    /// Measured linear velocity (m/s), as odometry reports it.
+    Linear,
+    /// Measured angular velocity (rad/s).
+    Angular,
+}
+
+impl ObsTerm {
+    /// Number of values this term contributes.
+    pub fn len(&self) -> usize {
+        match self {
+            ObsTerm::Lidar { beams, .. } => *beams,
+            _ => 1,
+        }
+    }
+
+    /// Whether the term contributes nothing (never: kept for the `len` convention).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The observation vector's layout: an ordered list of terms. Data, not code, so that other
+/// layouts (the seed policies', stacked frames...) are configuration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct ObservationLayout(pub Vec<ObsTerm>);
+
+impl Default for ObservationLayout {
+    /// The article's `[L_t (120 ranges, 0.15-3 m), d_t, θ_t, v_{t-1}, ω_{t-1}]`: 124 values.
+    fn default() -> Self {
+        ObservationLayout(vec![
+            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
+            ObsTerm::GoalDistance,
+            ObsTerm::GoalBearing,
+            ObsTerm::LastLinear,
+            ObsTerm::LastAngular,
+        ])
+    }
+}
+
+impl ObservationLayout {
+    /// Length of the observation vector.
+    pub fn len(&self) -> usize {
+        self.0.iter().map(ObsTerm::len).sum()
+    }
+
+    /// Whether the layout is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// How the policy's action in `[-1, 1]²` maps to a velocity command.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ActionConfig {
+    /// Linear velocity range `[min, max]` (m/s), default the article's [0.1, 0.5].
+    pub linear: [f32; 2],
+    /// Angular velocity range `[min, max]` (rad/s), default [-0.5, 0.5].
+    pub angular: [f32; 2],
+}
+
+impl Default for ActionConfig {
+    fn default() -> Self {
+        Self { linear: [0.1, 0.5], angular: [-0.5, 0.5] }
+    }
+}
+
+impl ActionConfig {
+    /// Clips an action to `[-1, 1]` and rescales it to the velocity ranges. A non-finite
+    /// component maps to the middle of its range.
+    #[inline]
+    pub fn to_twist(&self, a: [f32; 2]) -> Twist {
+        let scale = |x: f32, r: [f32; 2]| {
+            let x = if x.is_finite() { x.clamp(-1.0, 1.0) } else { 0.0 };
+            r[0] + (x + 1.0) * 0.5 * (r[1] - r[0])
+        };
+        Twist::new(scale(a[0], self.linear), scale(a[1], self.angular))
+    }
+
+    /// The action that produces `t` (clipped to the ranges): the inverse of [`Self::to_twist`].
+    pub fn to_action(&self, t: Twist) -> [f32; 2] {
+        let unscale = |x: f32, r: [f32; 2]| {
+            if r[1] > r[0] { ((x - r[0]) / (r[1] - r[0]) * 2.0 - 1.0).clamp(-1.0, 1.0) } else { 0.0 }
+        };
+        [unscale(t.linear, self.linear), unscale(t.angular, self.angular)]
+    }
+}
+
+/// Reward weights and thresholds (defaults follow the reference article).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RewardConfig {
+    /// Weight of the progress term `d_{t-1} - d_t` (default 1).
+    pub progress: f32,
+    /// Proximity penalty weight: `-proximity * exp(-r_min)` while `r_min < proximity_range`
+    /// (default 1).
+    pub proximity: f32,
+    /// Lidar distance below which the proximity penalty applies (m, default 0.5).
+    pub proximity_range: f32,
+    /// Reward for reaching the goal (default 30).
+    pub goal: f32,
+    /// Extra goal reward per control step left before the time limit (default 0.01).
+    pub goal_time_bonus: f32,
+    /// Reward on collision (default -30).
+    pub collision: f32,
+    /// Reward on time-out (default -30).
+    pub timeout: f32,
+}
+
+impl Default for RewardConfig {
+    fn default() -> Self {
+        Self {
+            progress: 1.0,
+            proximity: 1.0,
+            proximity_range: 0.5,
+            goal: 30.0,
+            goal_time_bonus: 0.01,
+            collision: -30.0,
+            timeout: -30.0,
+        }
+    }
+}
+
+/// The task: timing, termination, action scaling, reward and observation layout.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TaskConfig {
+    /// Physics step (s, default 0.02).
+    pub physics_dt: f32,
+    /// Control period (s, default 0.1: the rate real lidars publish at); a whole number of
+    /// physics steps.
+    pub control_period: f32,
+    /// Control steps before a time-out (default 1200).
+    pub max_steps: u32,
+    /// Distance to the goal that counts as reached (m, default 0.3).
+    pub goal_tolerance: f32,
+    /// A lidar reading below this is a collision (m, default 0.25); footprint contact is one too.
+    pub collision_range: f32,
+    /// Action scaling.
+    pub action: ActionConfig,
+    /// Reward.
+    pub reward: RewardConfig,
+    /// Observation layout.
+    pub observation: ObservationLayout,
+}
+
+impl Default for TaskConfig {
+    fn default() -> Self {
+        Self {
+            physics_dt: 0.02,
+            control_period: 0.1,
+            max_steps: 1200,
+            goal_tolerance: 0.3,
+            collision_range: 0.25,
+            action: ActionConfig::default(),
+            reward: RewardConfig::default(),
+            observation: ObservationLayout::default(),
+        }
+    }
+}
+
+impl Validate for TaskConfig {
+    fn validate(&self) -> Result<(), Invalid> {
+        check_range("physics_dt", self.physics_dt, 1e-4, 1.0)?;
+        check_range("control_period", self.control_period, self.physics_dt, 10.0)?;
+        let ratio = self.control_period / self.physics_dt;
+        if (ratio - ratio.round()).abs() > 1e-3 {
+            return Err(Invalid::new(
+                "control_period",
+                format!("a whole multiple of physics_dt ({}), got {}", self.physics_dt, self.control_period),
+            ));
+        }
+        if self.max_steps == 0 {
+            return Err(Invalid::new("max_steps", "at least 1"));
+        }
+        check_positive("goal_tolerance", self.goal_tolerance)?;
+        check_range("collision_range", self.collision_range, 0.0, 10.0)?;
+        check_interval("action.linear", self.action.linear, -100.0, 100.0)?;
+        check_interval("action.angular", self.action.angular, -100.0, 100.0)?;
+        let r = &self.reward;
+        for (k, v) in [
+            ("reward.progress", r.progress),
+            ("reward.proximity", r.proximity),
+            ("reward.goal", r.goal),
+            ("reward.goal_time_bonus", r.goal_time_bonus),
+            ("reward.collision", r.collision),
+            ("reward.timeout", r.timeout),
+        ] {
+            check_range(k, v, -1e4, 1e4)?;
+        }
+        check_range("reward.proximity_range", r.proximity_range, 0.0, 100.0)?;
+        for (i, t) in self.observation.0.iter().enumerate() {
+            if let ObsTerm::Lidar { beams, clip } = t {
+                if *beams == 0 {
+                    return Err(Invalid::new(format!("observation[{i}].lidar.beams"), "at least 1"));
+                }
+                check_interval(&format!("observation[{i}].lidar.clip"), *clip, 0.0, 1000.0)?;
+            }
+        }
+        if self.observation.is_empty() {
+            return Err(Invalid::new("observation", "at least one term"));
+        }
+        Ok(())
+    }
+}
+
+impl TaskConfig {
+    /// Reads a task file.
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        from_yaml_file(path)
+    }
+}
+
+/// How an episode ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Reached the goal.
+    Success,
+    /// Touched an obstacle or came closer than the collision range.
+    Collision,
+    /// Ran out of time.
+    Timeout,
+}
+
+/// What one finished episode measured.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeStats {
+    /// How it ended.
+    pub outcome: Outcome,
+    /// Sum of rewards.
+    pub episode_return: f32,
+    /// Control steps.
+    pub length: u32,
+    /// Simulated time (s).
+    pub time: f32,
+    /// Smallest lidar reading seen (m).
+    pub min_range: f32,
+    /// Mean linear speed over the episode (m/s).
+    pub mean_speed: f32,
+    /// Distance driven (m).
+    pub path_length: f32,
+    /// Start-to-goal distance (m).
+    pub initial_distance: f32,
+    /// Final distance to the goal (m).
+    pub final_distance: f32,
+}
+
+/// What the environment reports after each control step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepOutcome {
+    /// Reward for this step.
+    pub reward: f32,
+    /// The episode ended by success or collision (no bootstrapping).
+    pub terminated: bool,
+    /// The episode was cut by the time limit (bootstrap from the final observation).
+    pub truncated: bool,
+}
+
+/// Errors building or running an environment.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A configuration problem.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The task's observation does not fit the robot's lidar.
+    #[error("task observation does not fit robot `{robot}`: {message}")]
+    Incompatible {
+        /// The robot.
+        robot: String,
+        /// What does not fit.
+        message: String,
+    },
+    /// No episode could be drawn.
+    #[error(transparent)]
+    NoEpisode(#[from] NoEpisode),
+}
+
+/// Everything environments share, read-only: scenario, robot, task, compiled lidar.
+#[derive(Debug)]
+pub struct EnvSetup {
+    /// The scenario, compiled for this robot.
+    pub scenario: Scenario,
+    /// The robot.
+    pub robot: RobotSpec,
+    /// The task.
+    pub task: TaskConfig,
+    /// The robot's lidar, compiled.
+    pub lidar: Lidar,
+    /// The robot's footprint, compiled.
+    pub footprint: Footprint,
+    substeps: u32,
+    obs_dim: usize,
+}
+
+impl EnvSetup {
+    /// Checks that the pieces fit and compiles them.
+    pub fn new(scenario: ScenarioSpec, robot: RobotSpec, task: TaskConfig) -> Result<Self, SimError> {
+        task.validate().map_err(|e| e.in_file("<task>"))?;
+        robot.validate().map_err(|e| e.in_file(&format!("<robot {}>", robot.name)))?;
+        let beams = robot.lidar.beams;
+        for t in &task.observation.0 {
+            if let ObsTerm::Lidar { beams: b, .. } = t {
+                if beams % b != 0 {
+                    return Err(SimError::Incompatible {
+                        robot: robot.name.clone(),
+                        message: format!("lidar term wants {b} beams, which does not divide the robot's {beams}"),
+                    });
+                }
+            }
+        }
+        let footprint = robot.footprint();
+        let clearance = footprint.radius().max(task.collision_range);
+        let scenario = Scenario::new(scenario, clearance)?;
+        let substeps = (task.control_period / task.physics_dt).round() as u32;
+        let obs_dim = task.observation.len();
+        Ok(Self { scenario, lidar: Lidar::new(robot.lidar.clone()), footprint, robot, task, substeps, obs_dim })
+    }
+
+    /// Loads the scenario (preset or file) with its own robot and the default task.
+    pub fn from_scenario_name(name: &str) -> Result<Self, SimError> {
+        let spec = ScenarioSpec::load(name)?;
+        let robot = RobotSpec::load(&spec.robot)?;
+        Self::new(spec, robot, TaskConfig::default())
+    }
+
+    /// Length of the observation vector.
+    pub fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+
+    /// Physics steps per control step.
+    pub fn substeps(&self) -> u32 {
+        self.substeps
+    }
+}
+
+/// One robot navigating one episode after another.
+#[derive(Debug)]
+pub struct NavEnv {
+    setup: Arc<EnvSetup>,
+    rng: Pcg64Mcg,
+    world: Arc<World>,
+    drive: DiffDrive,
+    goal: Vec2,
+    last_command: Twist,
+    distance: f32,
+    steps: u32,
+    ranges: Vec<f32>,
+    dirs: Vec<Vec2>,
+    pooled: Vec<f32>,
+    min_range: f32,
+    episode_return: f32,
+    speed_sum: f32,
+    path_length: f32,
+    initial_distance: f32,
+    last_episode: Option<EpisodeStats>,
+}
+
+impl NavEnv {
+    /// An environment with its own random stream, already reset.
+    pub fn new(setup: Arc<EnvSetup>, seed: u64) -> Result<Self, SimError> {
+        let n = setup.lidar.beams();
+        let max_pool = setup
+            .task
+            .observation
+            .0
+            .iter()
+            .filter_map(|t| if let ObsTerm::Lidar { beams, .. } = t { Some(*beams) } else { None })
+            .max()
+            .unwrap_or(0);
+        let drive = DiffDrive::new(DriveParams::from(&setup.robot), Pose2::default());
+        let mut env = Self {
+            rng: Pcg64Mcg::seed_from_u64(seed),
+            world: Arc::new(World::new(Vec::new())),
+            drive,
+            goal: Vec2::ZERO,
+            last_command: Twist::default(),
+            distance: 0.0,
+            steps: 0,
+            ranges: vec![f32::INFINITY; n],
+            dirs: vec![Vec2::ZERO; n],
+            pooled: vec![0.0; max_pool],
+            min_range: f32::INFINITY,
+            episode_return: 0.0,
+            speed_sum: 0.0,
+            path_length: 0.0,
+            initial_distance: 0.0,
+            last_episode: None,
+            setup,
+        };
+        env.reset()?;
+        Ok(env)
+    }
+
+    /// Starts a new episode: draws a world, start and goal, and takes the first scan.
+    pub fn reset(&mut self) -> Result<(), SimError> {
+        let ep = self.setup.scenario.sample(&mut self.rng)?;
+        self.world = ep.world;
+        self.drive = DiffDrive::new(DriveParams::from(&self.setup.robot), ep.start);
+        self.goal = ep.goal;
+        self.last_command = Twist::default();
+        self.distance = (self.goal - ep.start.position()).length();
+        self.initial_distance = self.distance;
+        self.steps = 0;
+        self.episode_return = 0.0;
+        self.speed_sum = 0.0;
+        self.path_length = 0.0;
+        self.scan();
+        self.min_range = self.current_min_range();
+        Ok(())
+    }
+
+    fn scan(&mut self) {
+        let s = &self.setup;
+        s.lidar.scan(&self.drive.pose, self.world.ray_geometry(), &mut self.dirs, &mut self.ranges);
+        s.lidar.apply_noise(&mut self.rng, &mut self.ranges);
+    }
+
+    fn current_min_range(&self) -> f32 {
+        self.ranges.iter().copied().fold(f32::INFINITY, f32::min)
+    }
+
+    /// Applies a normalised action in `[-1, 1]²` for one control period.
+    pub fn step(&mut self, action: [f32; 2]) -> StepOutcome {
+        let cmd = self.setup.task.action.to_twist(action);
+        self.step_twist(cmd)
+    }
+
+    /// Applies a velocity command (clipped to the task's action ranges) for one control period.
+    pub fn step_twist(&mut self, cmd: Twist) -> StepOutcome {
+        let setup = Arc::clone(&self.setup);
+        let task = &setup.task;
+        let a = &task.action;
+        let cmd = Twist::new(
+            if cmd.linear.is_finite() { cmd.linear.clamp(a.linear[0], a.linear[1]) } else { a.linear[0] },
+            if cmd.angular.is_finite() { cmd.angular.clamp(a.angular[0], a.angular[1]) } else { 0.0 },
+        );
+        let mut contact = false;
+        for _ in 0..setup.substeps {
+            let before = self.drive.pose.position();
+            self.drive.step(cmd, task.physics_dt);
+            self.path_length += (self.drive.pose.position() - before).length();
+            if setup.footprint.radius() > 0.0 && self.world.footprint_collides(&setup.footprint, &self.drive.pose) {
+                contact = true;
+                break;
+            }
+        }
+        self.last_command = cmd;
+        self.speed_sum += self.drive.velocity.linear.abs();
+        self.steps += 1;
+        self.scan();
+        let r_min = self.current_min_range();
+        self.min_range = self.min_range.min(r_min);
+
+        let d = (self.goal - self.drive.pose.position()).length();
+        let rw = &task.reward;
+        let mut reward = rw.progress * (self.distance - d);
+        if r_min < rw.proximity_range {
+            reward -= rw.proximity * (-r_min).exp();
+        }
+        self.distance = d;
+        let outcome = if contact || r_min < task.collision_range {
+            reward += rw.collision;
+            Some(Outcome::Collision)
+        } else if d < task.goal_tolerance {
+            reward += rw.goal + rw.goal_time_bonus * (task.max_steps.saturating_sub(self.steps)) as f32;
+            Some(Outcome::Success)
+        } else if self.steps >= task.max_steps {
+            reward += rw.timeout;
+            Some(Outcome::Timeout)
+        } else {
+            None
+        };
+        self.episode_return += reward;
+        if let Some(outcome) = outcome {
+            self.last_episode = Some(EpisodeStats {
+                outcome,
+                episode_return: self.episode_return,
+                length: self.steps,
+                time: self.steps as f32 * task.control_period,
+                min_range: self.min_range,
+                mean_speed: self.speed_sum / self.steps as f32,
+                path_length: self.path_length,
+                initial_distance: self.initial_distance,
+                final_distance: d,
+            });
+        }
+        StepOutcome {
+            reward,
+            terminated: matches!(outcome, Some(Outcome::Success | Outcome::Collision)),
+            truncated: outcome == Some(Outcome::Timeout),
+        }
+    }
+
+    /// Writes the observation vector (layout of the task) into `out`.
+    pub fn write_observation(&mut self, out: &mut [f32]) {
+        let (dist, bearing) = self.goal_polar();
+        let mut k = 0;
+        for term in &self.setup.task.observation.0 {
+            match term {
+                ObsTerm::Lidar { beams, clip } => {
+                    let pooled = &mut self.pooled[..*beams];
+                    min_pool(&self.ranges, pooled);
+                    for (o, r) in out[k..k + beams].iter_mut().zip(pooled.iter()) {
+                        // +inf (no return) clips to the far end; NaN never occurs in simulation.
+                        *o = r.clamp(clip[0], clip[1]);
+                    }
+                    k += beams;
+                }
+                other => {
+                    out[k] = match other {
+                        ObsTerm::GoalDistance => dist,
+                        ObsTerm::GoalBearing => bearing,
+                        ObsTerm::LastLinear => self.last_command.linear,
+                        ObsTerm::LastAngular => self.last_command.angular,
+                        ObsTerm::Linear => self.drive.velocity.linear,
+                        ObsTerm::Angular => self.drive.velocity.angular,
+                        ObsTerm::Lidar { .. } => unreachable!(),
+                    };
+                    k += 1;
+                }
+            }
+        }
+    }
+
+    /// Goal distance and bearing in the robot frame.
+    pub fn goal_polar(&self) -> (f32, f32) {
+        let g = self.drive.pose.to_local(self.goal);
+        (g.length(), wrap_angle(g.y.atan2(g.x)))
+    }
+
+    /// Fills what a robot's topics would carry (scan, odometry, goal) for a [`Controller`].
+    pub fn robot_observation(&self, out: &mut RobotObservation) {
+        let spec = self.setup.lidar.spec();
+        if out.scan.ranges.len() != self.ranges.len() {
+            out.scan = LaserScan::for_spec(spec);
+        }
+        out.scan.ranges.copy_from_slice(&self.ranges);
+        out.scan_mount = spec.mount;
+        out.pose = self.drive.pose;
+        out.velocity = self.drive.velocity;
+        out.goal = self.goal;
+        out.last_command = self.last_command;
+        out.time = self.steps as f32 * self.setup.task.control_period;
+    }
+
+    /// The statistics of the episode that ended last (`None` before the first ends).
+    pub fn last_episode(&self) -> Option<EpisodeStats> {
+        self.last_episode
+    }
+
+    /// The robot's pose.
+    pub fn pose(&self) -> Pose2 {
+        self.drive.pose
+    }
+
+    /// The goal.
+    pub fn goal(&self) -> Vec2 {
+        self.goal
+    }
+
+    /// The current world.
+    pub fn world(&self) -> &Arc<World> {
+        &self.world
+    }
+
+    /// The latest scan (full beam count).
+    pub fn ranges(&self) -> &[f32] {
+        &self.ranges
+    }
+
+    /// The shared setup.
+    pub fn setup(&self) -> &Arc<EnvSetup> {
+        &self.setup
+    }
+
+    /// Runs one episode from the current state under `controller`, then resets.
+    /// Returns the episode's statistics.
+    pub fn run_episode(&mut self, controller: &mut dyn Controller) -> Result<EpisodeStats, SimError> {
+        controller.reset();
+        let mut obs = RobotObservation::default();
+        loop {
+            self.robot_observation(&mut obs);
+            let out = self.step_twist(controller.act(&obs));
+            if out.terminated || out.truncated {
+                let stats = self.last_episode.expect("set when an episode ends");
+                self.reset()?;
+                return Ok(stats);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::controller::{GreedyGoal, StraightAhead};
+
+    fn setup(name: &str) -> Arc<EnvSetup> {
+        Arc::new(EnvSetup::from_scenario_name(name).unwrap())
+    }
+
+    #[test]
+    fn default_layout_is_the_articles() {
+        let t = TaskConfig::default();
+        assert_eq!(t.observation.len(), 124);
+        let yaml = include_str!("../../../configs/task.yaml");
+        let parsed: TaskConfig = crate::config::from_yaml_str("configs/task.yaml", yaml).unwrap();
+        assert_eq!(parsed, t, "configs/task.yaml documents the defaults");
+    }
+
+    #[test]
+    fn action_scaling_round_trips() {
+        let a = ActionConfig::default();
+        assert_eq!(a.to_twist([-1.0, -1.0]), Twist::new(0.1, -0.5));
+        assert_eq!(a.to_twist([1.0, 1.0]), Twist::new(0.5, 0.5));
+        assert_eq!(a.to_twist([5.0, f32::NAN]), Twist::new(0.5, 0.0));
+        let t = Twist::new(0.3, 0.25);
+        let back = a.to_twist(a.to_action(t));
+        assert!((back.linear - 0.3).abs() < 1e-6 && (back.angular - 0.25).abs() < 1e-6);
+    }
+
+    #[test]
+    fn greedy_reaches_goals_in_an_empty_room() {
+        let mut env = NavEnv::new(setup("empty-room"), 7).unwrap();
+        let mut c = GreedyGoal::default();
+        let mut successes = 0;
+        for _ in 0..40 {
+            let s = env.run_episode(&mut c).unwrap();
+            if s.outcome == Outcome::Success {
+                successes += 1;
+                assert!(s.final_distance < 0.3);
+                assert!(s.path_length >= s.initial_distance - 0.3 - 1e-3);
+            }
+        }
+        // Blind to walls and unable to turn on the spot (v >= 0.1 m/s), it sometimes starts
+        // facing a wall with the goal behind it; everything else it reaches.
+        assert!(successes >= 34, "{successes}/40");
+    }
+
+    #[test]
+    fn driving_into_a_wall_is_a_collision_with_the_penalty() {
+        let mut env = NavEnv::new(setup("empty-room"), 1).unwrap();
+        let mut c = StraightAhead { speed: 0.5 };
+        let mut collisions = 0;
+        for _ in 0..10 {
+            let s = env.run_episode(&mut c).unwrap();
+            if s.outcome == Outcome::Collision {
+                collisions += 1;
+                assert!(s.min_range < 0.25 + 1e-6);
+                assert!(s.episode_return < -25.0);
+            }
+        }
+        assert!(collisions >= 5, "straight ahead in a 6 m room mostly hits a wall: {collisions}");
+    }
+
+    #[test]
+    fn timeout_is_truncation_not_termination() {
+        let spec = ScenarioSpec::load("empty-room").unwrap();
+        let robot = RobotSpec::load("jetbot").unwrap();
+        let task = TaskConfig { max_steps: 5, ..Default::default() };
+        let mut env = NavEnv::new(Arc::new(EnvSetup::new(spec, robot, task).unwrap()), 3).unwrap();
+        // Slowest forward speed: 5 steps cover 0.05 m, while start and goal are >= 1 m apart
+        // and the start has >= 0.35 m of clearance, so neither goal nor collision can happen.
+        for i in 0..5 {
+            let out = env.step([-1.0, 0.0]);
+            assert_eq!(out.truncated, i == 4);
+            assert!(!out.terminated);
+            if i == 4 {
+                assert!(out.reward < -25.0);
+            }
+        }
+        assert_eq!(env.last_episode().unwrap().outcome, Outcome::Timeout);
+    }
+
+    #[test]
+    fn observation_matches_its_layout() {
+        let mut env = NavEnv::new(setup("static-room"), 11).unwrap();
+        let mut obs = vec![0.0; 124];
+        env.write_observation(&mut obs);
+        assert!(obs[..120].iter().all(|r| (0.15..=3.0).contains(r)));
+        let (d, b) = env.goal_polar();
+        assert_eq!((obs[120], obs[121]), (d, b));
+        // The pooled value is the minimum of its three beams.
+        let ranges = env.ranges().to_vec();
+        for (i, o) in obs[..120].iter().enumerate() {
+            let m = ranges[3 * i..3 * i + 3].iter().copied().fold(f32::INFINITY, f32::min);
+            assert_eq!(*o, m.clamp(0.15, 3.0));
+        }
+        env.step([1.0, 1.0]);
+        env.write_observation(&mut obs);
+        assert_eq!((obs[122], obs[123]), (0.5, 0.5));
+    }
+}

@@ -1,0 +1,189 @@
+//! [`VecEnv`]: N navigation environments stepped in parallel, with automatic reset and
+//! structure-of-arrays buffers ready for a learner.
+//!
+//! Every environment owns its random stream, seeded from the run seed and its index, so the
+//! results are the same whatever the thread count. Stepping allocates nothing (only drawing a
+//! procedurally generated world at reset does).
+
+use crate::task::{EnvSetup, EpisodeStats, NavEnv, SimError};
+use rand::{RngExt, SeedableRng};
+use rayon::prelude::*;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Seed of environment `index` in a run seeded with `seed` (SplitMix64 finaliser, so that
+/// neighbouring indices get unrelated streams).
+pub fn env_seed(seed: u64, index: usize) -> u64 {
+    let mut z = seed ^ (index as u64).wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// N environments with shared setup, stepped together.
+pub struct VecEnv {
+    envs: Vec<NavEnv>,
+    pool: rayon::ThreadPool,
+    obs_dim: usize,
+    /// Observations after the last step (after reset for environments that finished), `[n, obs_dim]`.
+    pub obs: Vec<f32>,
+    /// Rewards of the last step, `[n]`.
+    pub rewards: Vec<f32>,
+    /// Episode ended by success or collision in the last step, `[n]`.
+    pub terminated: Vec<bool>,
+    /// Episode cut by the time limit in the last step, `[n]`.
+    pub truncated: Vec<bool>,
+    /// Final observation of environments that finished in the last step (for bootstrapping
+    /// time-outs), `[n, obs_dim]`; rows of running environments are stale.
+    pub final_obs: Vec<f32>,
+    /// Statistics of the episodes that finished in the last step, per environment.
+    pub finished: Vec<Option<EpisodeStats>>,
+}
+
+/// Environments per rayon task: enough work to amortise scheduling.
+const CHUNK: usize = 16;
+
+impl VecEnv {
+    /// Builds `n` environments on `threads` worker threads (0: rayon's default).
+    pub fn new(setup: Arc<EnvSetup>, n: usize, seed: u64, threads: usize) -> Result<Self, SimError> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("rlnav-sim-{i}"))
+            .build()
+            .expect("a thread pool can be built");
+        let envs = pool.install(|| {
+            (0..n).into_par_iter().map(|i| NavEnv::new(setup.clone(), env_seed(seed, i))).collect::<Result<Vec<_>, _>>()
+        })?;
+        let d = setup.obs_dim();
+        let mut v = Self {
+            envs,
+            pool,
+            obs_dim: d,
+            obs: vec![0.0; n * d],
+            rewards: vec![0.0; n],
+            terminated: vec![false; n],
+            truncated: vec![false; n],
+            final_obs: vec![0.0; n * d],
+            finished: vec![None; n],
+        };
+        for (env, o) in v.envs.iter_mut().zip(v.obs.chunks_mut(d)) {
+            env.write_observation(o);
+        }
+        Ok(v)
+    }
+
+    /// Number of environments.
+    pub fn len(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Whether there are no environments.
+    pub fn is_empty(&self) -> bool {
+        self.envs.is_empty()
+    }
+
+    /// Length of one observation.
+    pub fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+
+    /// Worker threads.
+    pub fn threads(&self) -> usize {
+        self.pool.current_num_threads()
+    }
+
+    /// The environments (for inspection: poses, worlds, scans).
+    pub fn envs(&self) -> &[NavEnv] {
+        &self.envs
+    }
+
+    /// Steps every environment with its normalised action (`actions.len() == len()`),
+    /// resetting those whose episode ended.
+    pub fn step(&mut self, actions: &[[f32; 2]]) -> Result<(), SimError> {
+        assert_eq!(actions.len(), self.envs.len(), "one action per environment");
+        let d = self.obs_dim;
+        let Self { envs, pool, obs, rewards, terminated, truncated, final_obs, finished, .. } = self;
+        pool.install(|| {
+            envs.par_chunks_mut(CHUNK)
+                .zip(actions.par_chunks(CHUNK))
+                .zip(obs.par_chunks_mut(CHUNK * d))
+                .zip(final_obs.par_chunks_mut(CHUNK * d))
+                .zip(rewards.par_chunks_mut(CHUNK))
+                .zip(terminated.par_chunks_mut(CHUNK))
+                .zip(truncated.par_chunks_mut(CHUNK))
+                .zip(finished.par_chunks_mut(CHUNK))
+                .try_for_each(|(((((((envs, acts), obs), fobs), rew), term), trunc), fin)| {
+                    for i in 0..envs.len() {
+                        let env = &mut envs[i];
+                        let out = env.step(acts[i]);
+                        rew[i] = out.reward;
+                        term[i] = out.terminated;
+                        trunc[i] = out.truncated;
+                        let o = &mut obs[i * d..(i + 1) * d];
+                        if out.terminated || out.truncated {
+                            env.write_observation(&mut fobs[i * d..(i + 1) * d]);
+                            fin[i] = env.last_episode();
+                            env.reset()?;
+                        } else {
+                            fin[i] = None;
+                        }
+                        env.write_observation(o);
+                    }
+                    Ok(())
+                })
+        })
+    }
+}
+
+/// What `rlnav sim-speed` measures.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SpeedReport {
+    /// Environment (control) steps per second, resets included.
+    pub env_steps_per_s: f64,
+    /// Lidar beams cast per second.
+    pub rays_per_s: f64,
+    /// Environments.
+    pub envs: usize,
+    /// Worker threads.
+    pub threads: usize,
+    /// Beams per scan.
+    pub beams: usize,
+    /// Obstacles in the first environment's world (walls count one each).
+    pub obstacles: usize,
+    /// Episodes that ended during the measurement.
+    pub episodes: usize,
+    /// Steps measured.
+    pub steps: usize,
+}
+
+/// Steps `env` with uniformly random actions for `steps` rounds (after `warmup` rounds) and
+/// reports the throughput.
+pub fn measure_speed(env: &mut VecEnv, steps: usize, warmup: usize, seed: u64) -> Result<SpeedReport, SimError> {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+    let mut actions = vec![[0.0f32; 2]; env.len()];
+    let mut episodes = 0;
+    let mut elapsed = 0.0;
+    for round in 0..warmup + steps {
+        for a in actions.iter_mut() {
+            *a = [rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0)];
+        }
+        let t = Instant::now();
+        env.step(&actions)?;
+        if round >= warmup {
+            elapsed += t.elapsed().as_secs_f64();
+            episodes += env.finished.iter().filter(|f| f.is_some()).count();
+        }
+    }
+    let env_steps = (steps * env.len()) as f64;
+    let beams = env.envs.first().map_or(0, |e| e.setup().lidar.beams());
+    Ok(SpeedReport {
+        env_steps_per_s: env_steps / elapsed,
+        rays_per_s: env_steps * beams as f64 / elapsed,
+        envs: env.len(),
+        threads: env.threads(),
+        beams,
+        obstacles: env.envs.first().map_or(0, |e| e.world().obstacles().len()),
+        episodes,
+        steps: steps * env.len(),
+    })
+}

@@ -1,0 +1,105 @@
+//! A static world: obstacles and walls, with the queries the simulator needs
+//! (footprint collision, clearance, ray geometry for the lidar).
+
+use crate::geometry::{Obstacle, Pose2, Rect, Vec2};
+use crate::lidar::RayGeometry;
+use crate::robot::Footprint;
+use parry2d::query::intersection_test;
+
+/// Obstacles and walls, compiled for queries.
+#[derive(Clone, Debug)]
+pub struct World {
+    obstacles: Vec<Obstacle>,
+    rays: RayGeometry,
+    bounds: Rect,
+}
+
+impl World {
+    /// Builds a world from compiled obstacles.
+    pub fn new(obstacles: Vec<Obstacle>) -> Self {
+        let rays = RayGeometry::new(obstacles.iter().map(|o| &o.primitive));
+        let mut min = Vec2::splat(f32::INFINITY);
+        let mut max = Vec2::splat(f32::NEG_INFINITY);
+        for o in &obstacles {
+            min = min.min(o.bound_center - Vec2::splat(o.bound_radius));
+            max = max.max(o.bound_center + Vec2::splat(o.bound_radius));
+        }
+        if obstacles.is_empty() {
+            (min, max) = (Vec2::ZERO, Vec2::ZERO);
+        }
+        Self { obstacles, rays, bounds: Rect { min, max } }
+    }
+
+    /// The obstacles.
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
+    /// What the lidar casts against.
+    pub fn ray_geometry(&self) -> &RayGeometry {
+        &self.rays
+    }
+
+    /// A rectangle containing every obstacle.
+    pub fn bounds(&self) -> Rect {
+        self.bounds
+    }
+
+    /// Whether the footprint at `pose` touches or overlaps any obstacle. Bounding circles
+    /// cull first; parry2d decides the rest exactly.
+    pub fn footprint_collides(&self, footprint: &Footprint, pose: &Pose2) -> bool {
+        let p = pose.position();
+        let r = footprint.radius();
+        let robot = pose.to_parry();
+        self.obstacles.iter().any(|o| {
+            let reach = r + o.bound_radius;
+            if (o.bound_center - p).length_squared() > reach * reach {
+                return false;
+            }
+            // parry2d supports every pair of shapes used here; treat "unsupported" as contact
+            // so that a surprise can only stop a robot, never let it pass through.
+            match intersection_test(&robot, footprint.shape(), &o.pose, o.shape.as_ref()) {
+                Ok(hit) => hit.intersecting,
+                Err(_) => true,
+            }
+        })
+    }
+
+    /// Distance from `p` to the nearest obstacle surface (negative inside one; +inf if none).
+    pub fn clearance(&self, p: Vec2) -> f32 {
+        self.obstacles.iter().map(|o| o.primitive.signed_distance(p)).fold(f32::INFINITY, f32::min)
+    }
+
+    /// Like [`World::clearance`] but stops early: whether the clearance at `p` is at least `min`.
+    pub fn is_clear(&self, p: Vec2, min: f32) -> bool {
+        self.obstacles
+            .iter()
+            .all(|o| (o.bound_center - p).length() - o.bound_radius >= min || o.primitive.signed_distance(p) >= min)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::ObstacleSpec;
+    use crate::robot::FootprintSpec;
+
+    #[test]
+    fn footprint_contact() {
+        let w = World::new(vec![
+            Obstacle::new(ObstacleSpec::Box { center: [1.0, 0.0], size: [0.2, 2.0], yaw: 0.0 }).unwrap(),
+            Obstacle::new(ObstacleSpec::Wall { from: [-1.0, -1.0], to: [-1.0, 1.0] }).unwrap(),
+        ]);
+        let circle = Footprint::new(&FootprintSpec::Circle { radius: 0.1 }).unwrap();
+        assert!(!w.footprint_collides(&circle, &Pose2::new(0.75, 0.0, 0.0)));
+        assert!(w.footprint_collides(&circle, &Pose2::new(0.85, 0.0, 0.0)));
+        assert!(w.footprint_collides(&circle, &Pose2::new(-0.95, 0.5, 0.0)));
+        let rect =
+            Footprint::new(&FootprintSpec::Polygon(vec![[-0.3, -0.1], [0.3, -0.1], [0.3, 0.1], [-0.3, 0.1]])).unwrap();
+        // A long robot: touching when facing the box, clear when turned sideways.
+        assert!(w.footprint_collides(&rect, &Pose2::new(0.65, 0.0, 0.0)));
+        assert!(!w.footprint_collides(&rect, &Pose2::new(0.65, 0.0, std::f32::consts::FRAC_PI_2)));
+        assert!((w.clearance(Vec2::new(0.0, 0.0)) - 0.9).abs() < 1e-6);
+        assert!(w.is_clear(Vec2::new(0.0, 0.0), 0.85) && !w.is_clear(Vec2::new(0.0, 0.0), 0.95));
+    }
+}

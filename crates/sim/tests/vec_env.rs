@@ -1,0 +1,77 @@
+//! The batched environment: determinism whatever the thread count, automatic reset, and the
+//! buffers a learner reads.
+
+use rand::{RngExt, SeedableRng};
+use rlnav_sim::task::{EnvSetup, Outcome};
+use rlnav_sim::vec_env::VecEnv;
+use std::sync::Arc;
+
+fn run(scenario: &str, threads: usize, seed: u64, steps: usize) -> (Vec<f32>, Vec<f32>, Vec<(usize, Outcome, u32)>) {
+    let setup = Arc::new(EnvSetup::from_scenario_name(scenario).unwrap());
+    let mut env = VecEnv::new(setup, 37, seed, threads).unwrap();
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(99);
+    let mut actions = vec![[0.0f32; 2]; env.len()];
+    let mut rewards = Vec::new();
+    let mut ends = Vec::new();
+    for t in 0..steps {
+        for a in &mut actions {
+            *a = [rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0)];
+        }
+        env.step(&actions).unwrap();
+        rewards.extend_from_slice(&env.rewards);
+        for (i, f) in env.finished.iter().enumerate() {
+            if let Some(s) = f {
+                ends.push((t * 1000 + i, s.outcome, s.length));
+            }
+        }
+    }
+    (env.obs.clone(), rewards, ends)
+}
+
+#[test]
+fn same_seed_same_results_whatever_the_thread_count() {
+    for scenario in ["static-room", "random-static"] {
+        let one = run(scenario, 1, 5, 150);
+        let two = run(scenario, 2, 5, 150);
+        let four = run(scenario, 4, 5, 150);
+        assert!(!one.2.is_empty(), "episodes ended");
+        assert_eq!(one, two, "{scenario}: 1 vs 2 threads");
+        assert_eq!(one, four, "{scenario}: 1 vs 4 threads");
+        let other = run(scenario, 2, 6, 150);
+        assert_ne!(one.1, other.1, "{scenario}: another seed, another run");
+    }
+}
+
+#[test]
+fn finished_episodes_reset_and_report() {
+    let setup = Arc::new(EnvSetup::from_scenario_name("empty-room").unwrap());
+    let d = setup.obs_dim();
+    let mut env = VecEnv::new(setup, 8, 1, 2).unwrap();
+    // Full speed straight ahead: every robot eventually hits a wall or (rarely) its goal.
+    let actions = vec![[1.0f32, 0.0]; 8];
+    let mut seen = 0;
+    for _ in 0..400 {
+        let before: Vec<_> = env.envs().iter().map(|e| (e.pose(), e.goal())).collect();
+        env.step(&actions).unwrap();
+        for i in 0..8 {
+            let done = env.terminated[i] || env.truncated[i];
+            assert_eq!(done, env.finished[i].is_some());
+            if let Some(s) = env.finished[i] {
+                seen += 1;
+                assert_eq!(env.terminated[i], s.outcome != Outcome::Timeout);
+                assert_eq!(env.truncated[i], s.outcome == Outcome::Timeout);
+                if s.outcome == Outcome::Collision {
+                    assert!(env.rewards[i] <= -29.0);
+                    // The final observation saw the wall close; the new one is a fresh start.
+                    let final_min = env.final_obs[i * d..i * d + 120].iter().copied().fold(f32::INFINITY, f32::min);
+                    assert!(final_min < 0.3, "final obs min {final_min}");
+                }
+                let (pose, goal) = (env.envs()[i].pose(), env.envs()[i].goal());
+                assert!(pose != before[i].0 || goal != before[i].1, "environment {i} was reset");
+                // A fresh episode starts with a zero previous command.
+                assert_eq!(&env.obs[i * d + 122..i * d + 124], &[0.0, 0.0]);
+            }
+        }
+    }
+    assert!(seen >= 8, "{seen} episodes ended");
+}
