@@ -6,7 +6,10 @@ use rlnav_sim::task::{EnvSetup, Outcome};
 use rlnav_sim::vec_env::VecEnv;
 use std::sync::Arc;
 
-fn run(scenario: &str, threads: usize, seed: u64, steps: usize) -> (Vec<f32>, Vec<f32>, Vec<(usize, Outcome, u32)>) {
+/// Final observations, every reward, and (step * 1000 + env, outcome, length) of every episode end.
+type Trace = (Vec<f32>, Vec<f32>, Vec<(usize, Outcome, u32)>);
+
+fn run(scenario: &str, threads: usize, seed: u64, steps: usize) -> Trace {
     let setup = Arc::new(EnvSetup::from_scenario_name(scenario).unwrap());
     let mut env = VecEnv::new(setup, 37, seed, threads).unwrap();
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(99);
@@ -53,7 +56,7 @@ fn finished_episodes_reset_and_report() {
     for _ in 0..400 {
         let before: Vec<_> = env.envs().iter().map(|e| (e.pose(), e.goal())).collect();
         env.step(&actions).unwrap();
-        for i in 0..8 {
+        for (i, before) in before.iter().enumerate() {
             let done = env.terminated[i] || env.truncated[i];
             assert_eq!(done, env.finished[i].is_some());
             if let Some(s) = env.finished[i] {
@@ -67,7 +70,7 @@ fn finished_episodes_reset_and_report() {
                     assert!(final_min < 0.3, "final obs min {final_min}");
                 }
                 let (pose, goal) = (env.envs()[i].pose(), env.envs()[i].goal());
-                assert!(pose != before[i].0 || goal != before[i].1, "environment {i} was reset");
+                assert!(pose != before.0 || goal != before.1, "environment {i} was reset");
                 // A fresh episode starts with a zero previous command.
                 assert_eq!(&env.obs[i * d + 122..i * d + 124], &[0.0, 0.0]);
             }
