@@ -12,6 +12,21 @@
 //! - [`controller`]: the [`Controller`] trait that joins evaluation, benchmark and deployment.
 //!
 //! Units are SI and frames follow REP-103/105 (x forward, y left, yaw counter-clockwise).
+//!
+//! ```
+//! use rlnav_sim::task::EnvSetup;
+//! use rlnav_sim::VecEnv;
+//! use std::sync::Arc;
+//!
+//! // The article's training room with a Jetbot and the default task (124 observations).
+//! let setup = Arc::new(EnvSetup::from_scenario_name("static-room")?);
+//! let mut envs = VecEnv::new(setup, 8, 42, 2)?;
+//! assert_eq!(envs.obs.len(), 8 * 124);
+//! // Normalised actions in [-1, 1]: full speed ahead, no turn.
+//! envs.step(&[[1.0, 0.0]; 8])?;
+//! assert!(envs.rewards.iter().all(|r| r.is_finite()));
+//! # Ok::<(), rlnav_sim::task::SimError>(())
+//! ```
 
 pub mod config;
 pub mod controller;

@@ -1,0 +1,55 @@
+//! The binary end to end: the README's main command, sim-speed's JSON line, and clean errors.
+
+use std::process::Command;
+
+fn rlnav(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_rlnav")).args(args).output().expect("rlnav runs")
+}
+
+#[test]
+fn demo_prints_episodes_and_a_summary() {
+    let out = rlnav(&["demo", "--episodes", "3", "--scenario", "empty-room"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("scenario empty-room | robot jetbot | controller greedy"), "{text}");
+    assert_eq!(text.lines().filter(|l| l.trim_start().starts_with(char::is_numeric)).count(), 3, "{text}");
+    assert!(text.lines().last().unwrap().starts_with("success "), "{text}");
+}
+
+#[test]
+fn sim_speed_ends_with_a_json_line() {
+    let out = rlnav(&["sim-speed", "--envs", "4", "--steps", "20", "--threads", "1"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let v: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
+    for key in ["env_steps_per_s", "rays_per_s", "envs", "threads", "beams", "obstacles"] {
+        assert!(v.get(key).is_some(), "{key} missing in {v}");
+    }
+    assert_eq!((v["envs"].as_u64(), v["threads"].as_u64(), v["beams"].as_u64()), (Some(4), Some(1), Some(360)));
+    // static-room: 4 arena walls and 10 obstacles.
+    assert_eq!(v["obstacles"].as_u64(), Some(14));
+    assert!(v["env_steps_per_s"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn bad_input_is_a_clean_error() {
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad-scene.yaml");
+    std::fs::write(&bad, "name: bad\narena: {size: [8, 8]}\nobstacles:\n  - circle: {center: [1, 1], radius: -2}\n")
+        .unwrap();
+    for args in [
+        vec!["demo", "--scenario", bad.to_str().unwrap()],
+        vec!["demo", "--scenario", "no-such-scene"],
+        vec!["demo", "--robot", "no-such-robot"],
+        vec!["sim-speed", "--envs", "0"],
+    ] {
+        let out = rlnav(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.starts_with("error: ") && !err.contains("panicked"), "{args:?}: {err}");
+    }
+    let err = String::from_utf8_lossy(&rlnav(&["demo", "--scenario", bad.to_str().unwrap()]).stderr).into_owned();
+    assert!(err.contains("bad-scene.yaml") && err.contains("obstacles[0].circle.radius"), "{err}");
+    std::fs::remove_dir_all(dir).ok();
+}
