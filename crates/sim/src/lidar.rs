@@ -243,11 +243,14 @@ impl Lidar {
             }
             let half = (r / d).min(1.0).asin();
             let center = rel.y.atan2(rel.x) - base;
-            let c2 = d2 - r * r;
+            let r2 = r * r;
             self.for_beams(center - half, 2.0 * half, |i| {
                 let dir = dirs[i];
                 let b = dir.dot(rel);
-                let disc = b * b - c2;
+                // r² - (perpendicular distance)² rather than b² - (d² - r²): no cancellation
+                // between large squares when the beam is nearly tangent.
+                let perp = dir.perp_dot(rel);
+                let disc = r2 - perp * perp;
                 if disc >= 0.0 {
                     let t = b - disc.sqrt();
                     if t >= 0.0 && t < out[i] {
