@@ -34,6 +34,7 @@ pub enum FootprintSpec {
 pub struct Footprint {
     shape: SharedShape,
     radius: f32,
+    disc: bool,
 }
 
 impl std::fmt::Debug for Footprint {
@@ -48,7 +49,7 @@ impl Footprint {
         match spec {
             FootprintSpec::Circle { radius } => {
                 check_positive("circle.radius", *radius)?;
-                Ok(Self { shape: SharedShape::new(Ball::new(*radius)), radius: *radius })
+                Ok(Self { shape: SharedShape::new(Ball::new(*radius)), radius: *radius, disc: true })
             }
             FootprintSpec::Polygon(points) => {
                 let pts: Vec<Vec2> = points.iter().map(|p| Vec2::new(p[0], p[1])).collect();
@@ -58,7 +59,7 @@ impl Footprint {
                 let radius = ccw.iter().map(|p| p.length()).fold(0.0, f32::max);
                 let shape = ConvexPolygon::from_convex_polyline(ccw)
                     .ok_or_else(|| Invalid::new("polygon", "a non-degenerate convex polygon"))?;
-                Ok(Self { shape: SharedShape::new(shape), radius })
+                Ok(Self { shape: SharedShape::new(shape), radius, disc: false })
             }
         }
     }
@@ -66,6 +67,11 @@ impl Footprint {
     /// The parry2d shape in `base_link`.
     pub fn shape(&self) -> &dyn Shape {
         self.shape.as_ref()
+    }
+
+    /// Whether the footprint is a disc centred on `base_link`.
+    pub fn is_disc(&self) -> bool {
+        self.disc
     }
 
     /// Circumscribed radius about `base_link` (the robot's reach when it turns in place).

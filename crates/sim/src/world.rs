@@ -46,7 +46,8 @@ impl World {
     }
 
     /// Whether the footprint at `pose` touches or overlaps any obstacle. Bounding circles
-    /// cull first; parry2d decides the rest exactly.
+    /// cull first, then the exact distance from `base_link` to the obstacle: a disc footprint
+    /// is decided by it, a polygon footprint within reach goes to parry2d.
     pub fn footprint_collides(&self, footprint: &Footprint, pose: &Pose2) -> bool {
         let p = pose.position();
         let r = footprint.radius();
@@ -55,6 +56,13 @@ impl World {
             let reach = r + o.bound_radius;
             if (o.bound_center - p).length_squared() > reach * reach {
                 return false;
+            }
+            let d = o.primitive.signed_distance(p);
+            if d > r {
+                return false;
+            }
+            if footprint.is_disc() {
+                return true;
             }
             // parry2d supports every pair of shapes used here; treat "unsupported" as contact
             // so that a surprise can only stop a robot, never let it pass through.

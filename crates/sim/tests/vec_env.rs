@@ -78,3 +78,26 @@ fn finished_episodes_reset_and_report() {
     }
     assert!(seen >= 8, "{seen} episodes ended");
 }
+
+#[test]
+fn every_robot_runs_in_every_scenario() {
+    use rlnav_sim::RobotSpec;
+    use rlnav_sim::robot::ROBOT_PRESETS;
+    use rlnav_sim::scenario::{SCENARIO_PRESETS, ScenarioSpec};
+    use rlnav_sim::task::TaskConfig;
+    for (robot, _) in ROBOT_PRESETS {
+        for (scenario, _) in SCENARIO_PRESETS {
+            let setup = EnvSetup::new(
+                ScenarioSpec::load(scenario).unwrap(),
+                RobotSpec::load(robot).unwrap(),
+                TaskConfig::default(),
+            )
+            .unwrap_or_else(|e| panic!("{robot} in {scenario}: {e}"));
+            let mut env = VecEnv::new(Arc::new(setup), 4, 1, 1).unwrap();
+            for _ in 0..50 {
+                env.step(&[[0.0, 0.3]; 4]).unwrap();
+                assert!(env.obs.iter().all(|x| x.is_finite()), "{robot} in {scenario}");
+            }
+        }
+    }
+}
