@@ -256,6 +256,7 @@ pub struct Scenario {
     /// World and reachability of a scenario without a generator (built once).
     fixed_world: Option<(Arc<World>, Arc<ReachabilityGrid>)>,
     clearance: f32,
+    start_clearance: f32,
 }
 
 /// Grid cell size for reachability checks (m).
@@ -267,9 +268,11 @@ const WORLD_TRIES: usize = 50;
 
 impl Scenario {
     /// Compiles `spec` for a robot that needs `clearance` metres of free space around its
-    /// centre (its footprint radius, or the collision range, whichever is larger). Checks
-    /// that episodes can be drawn.
-    pub fn new(spec: ScenarioSpec, clearance: f32) -> Result<Self, ConfigError> {
+    /// centre (its footprint radius, or the collision range, whichever is larger), and
+    /// `start_extra` more at the start (room to turn away from whatever it faces: a robot
+    /// that cannot turn on the spot needs its turning radius). Checks that episodes can be
+    /// drawn.
+    pub fn new(spec: ScenarioSpec, clearance: f32, start_extra: f32) -> Result<Self, ConfigError> {
         let file = format!("<scenario {}>", spec.name);
         spec.validate().map_err(|e| e.in_file(&file))?;
         let mut fixed_specs = spec.arena.iter().filter(|a| a.walls).flat_map(|a| a.wall_specs()).collect::<Vec<_>>();
@@ -291,7 +294,7 @@ impl Scenario {
         } else {
             None
         };
-        let s = Self { spec, area, fixed, fixed_world, clearance };
+        let s = Self { spec, area, fixed, fixed_world, clearance, start_clearance: clearance + start_extra.max(0.0) };
         // Fail at load time, with the file named, rather than at the first reset.
         let mut rng = rand_pcg::Pcg64Mcg::new(0x5eed);
         for _ in 0..3 {
@@ -317,6 +320,11 @@ impl Scenario {
     /// Free space required around the robot's centre at start and goal and along the way.
     pub fn clearance(&self) -> f32 {
         self.clearance
+    }
+
+    /// Free space required around the robot's centre at the start.
+    pub fn start_clearance(&self) -> f32 {
+        self.start_clearance
     }
 
     /// Draws one episode: a world (generated if the scenario has a generator), and a start and
@@ -353,7 +361,7 @@ impl Scenario {
         let mut free_start = 0;
         for _ in 0..PLACEMENT_TRIES {
             let start = self.draw(&self.spec.start, rng);
-            if grid.label(start.position()) == 0 || !world.is_clear(start.position(), self.clearance) {
+            if grid.label(start.position()) == 0 || !world.is_clear(start.position(), self.start_clearance) {
                 continue;
             }
             free_start += 1;
@@ -370,7 +378,7 @@ impl Scenario {
             }
         }
         Err(if free_start == 0 {
-            format!("no start position with {:.2} m clearance", self.clearance)
+            format!("no start position with {:.2} m clearance", self.start_clearance)
         } else {
             format!("no goal reachable from the start between {dmin} and {dmax} m away")
         })
@@ -464,14 +472,14 @@ mod tests {
     fn presets_compile_and_sample() {
         for (name, _) in SCENARIO_PRESETS {
             let spec = ScenarioSpec::load(name).unwrap();
-            let s = Scenario::new(spec, 0.25).unwrap();
+            let s = Scenario::new(spec, 0.25, 0.2).unwrap();
             let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(1);
             for _ in 0..20 {
                 let e = s.sample(&mut rng).unwrap();
                 let d = (e.goal - e.start.position()).length();
                 let [lo, hi] = s.spec().start_goal_distance;
                 assert!(d >= lo && d <= hi);
-                assert!(e.world.clearance(e.start.position()) >= s.clearance());
+                assert!(e.world.clearance(e.start.position()) >= s.start_clearance());
                 assert!(e.world.clearance(e.goal) >= s.clearance());
             }
         }
@@ -481,7 +489,7 @@ mod tests {
     fn generator_respects_counts_sizes_and_clearance() {
         let spec = ScenarioSpec::load("random-static").unwrap();
         let g = spec.procedural.clone().unwrap();
-        let s = Scenario::new(spec, 0.25).unwrap();
+        let s = Scenario::new(spec, 0.25, 0.0).unwrap();
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(9);
         let walls = 4;
         for _ in 0..50 {
@@ -525,7 +533,7 @@ mod tests {
         let yaml = "name: split\narena: {size: [4, 4]}\nobstacles:\n  - wall: {from: [0, -2], to: [0, 2]}\n\
                     start: {region: {min: [-1.8, -1.8], max: [-0.5, 1.8]}}\ngoal: {region: {min: [0.5, -1.8], max: [1.8, 1.8]}}\n";
         let spec: ScenarioSpec = crate::config::from_yaml_str("split.yaml", yaml).unwrap();
-        let err = Scenario::new(spec, 0.2).unwrap_err().to_string();
+        let err = Scenario::new(spec, 0.2, 0.0).unwrap_err().to_string();
         assert!(err.contains("<scenario split>") && err.contains("no goal reachable"), "{err}");
     }
 }

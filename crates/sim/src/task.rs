@@ -348,7 +348,12 @@ impl EnvSetup {
         }
         let footprint = robot.footprint();
         let clearance = footprint.radius().max(task.collision_range);
-        let scenario = Scenario::new(scenario, clearance)?;
+        // A robot that cannot turn on the spot (v_min > 0) needs its turning radius of room
+        // at the start, or a start facing a wall is a collision no policy can avoid.
+        let (v_min, w_max) =
+            (task.action.linear[0].max(0.0), task.action.angular[0].abs().max(task.action.angular[1].abs()));
+        let turning_radius = if v_min > 0.0 && w_max > 0.0 { v_min / w_max } else { 0.0 };
+        let scenario = Scenario::new(scenario, clearance, turning_radius)?;
         let substeps = (task.control_period / task.physics_dt).round() as u32;
         let obs_dim = task.observation.len();
         Ok(Self { scenario, lidar: Lidar::new(robot.lidar.clone()), footprint, robot, task, substeps, obs_dim })

@@ -174,7 +174,7 @@ proptest! {
 fn agrees_with_parry2d_in_the_training_room() {
     use rand::{RngExt, SeedableRng};
     use rlnav_sim::scenario::{Scenario, ScenarioSpec};
-    let scenario = Scenario::new(ScenarioSpec::load("static-room").unwrap(), 0.1).unwrap();
+    let scenario = Scenario::new(ScenarioSpec::load("static-room").unwrap(), 0.1, 0.0).unwrap();
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(4);
     let lidar = Lidar::new(LidarSpec::default());
     let (mut fast, mut reference) = (vec![0.0; 360], vec![0.0; 360]);
