@@ -9,6 +9,7 @@ use rlnav_sim::vec_env::{VecEnv, measure_speed};
 use rlnav_sim::{Controller, GreedyGoal, Outcome, RobotSpec, StraightAhead};
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Parser)]
 #[command(name = "rlnav", version, about = "End-to-end RL local planners for wheeled robots with a 2D lidar")]
@@ -53,6 +54,25 @@ enum Command {
         #[arg(long)]
         reference_lidar: bool,
     },
+    /// Train a policy with PPO (default: the built-in static-obstacle Jetbot run) and report
+    /// how well it navigates scenes it never saw.
+    Train {
+        /// Training configuration: a shipped name (static-mlp, smoke) or a YAML file.
+        #[arg(long)]
+        config: Option<String>,
+        /// Run folder (default: runs/<config name>-<seed>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Run seed (overrides the config's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Override a config value by its dotted path, e.g. `--set train.max_epochs=3`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Continue the run in this folder from its last checkpoint.
+        #[arg(long, conflicts_with_all = ["config", "out", "seed"])]
+        resume: Option<PathBuf>,
+    },
     /// List the shipped scenarios and robots.
     List,
 }
@@ -95,6 +115,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::SimSpeed { env, envs, threads, steps, seed, reference_lidar } => {
             sim_speed(&env, envs, threads, steps, seed, reference_lidar)
         }
+        Command::Train { config, out, seed, set, resume } => train(config, out, seed, set, resume),
         Command::List => {
             println!("scenarios:");
             for (name, _) in SCENARIO_PRESETS {
@@ -184,5 +205,109 @@ fn sim_speed(args: &EnvArgs, envs: usize, threads: usize, steps: usize, seed: u6
         report.episodes
     );
     println!("{}", serde_json::to_string(&report)?);
+    Ok(())
+}
+
+fn train(
+    config: Option<String>,
+    out: Option<PathBuf>,
+    seed: Option<u64>,
+    mut set: Vec<String>,
+    resume: Option<PathBuf>,
+) -> Result<()> {
+    use rlnav_train::{TrainOptions, load_run_config};
+    let (cfg, out, resuming) = match resume {
+        Some(dir) => {
+            let mut cfg = rlnav_train::run::read_run_config(&dir)?;
+            if !set.is_empty() {
+                anyhow::bail!("--set cannot change a run being resumed");
+            }
+            cfg.name = cfg.name.clone();
+            (cfg, dir, true)
+        }
+        None => {
+            if let Some(s) = seed {
+                set.push(format!("seed={s}"));
+            }
+            let cfg = load_run_config(config.as_deref(), &set)?;
+            let out = out.unwrap_or_else(|| PathBuf::from(format!("runs/{}-{}", cfg.name, cfg.seed)));
+            (cfg, out, false)
+        }
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || {
+            if stop.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!("\nstopping after this epoch (a checkpoint will be written); Ctrl-C again to abort");
+        })
+        .context("installing the Ctrl-C handler")?;
+    }
+    println!(
+        "training {} | robot {} | scenario {} | network {:?}{} | {} envs x {} steps | {} epochs -> {}",
+        cfg.name,
+        cfg.robot,
+        if cfg.curriculum.is_empty() {
+            cfg.scenario.clone()
+        } else {
+            format!("curriculum of {}", cfg.curriculum.len())
+        },
+        cfg.network.hidden,
+        if cfg.network.lstm_units > 0 { format!(" + LSTM {}", cfg.network.lstm_units) } else { String::new() },
+        cfg.train.num_actors,
+        cfg.train.horizon_length,
+        cfg.train.max_epochs,
+        out.display()
+    );
+    let bar = indicatif::ProgressBar::new(cfg.train.max_epochs as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} epochs [{elapsed_precise} eta {eta}] {msg}")
+            .expect("a valid template"),
+    );
+    let opts = TrainOptions { out: out.clone(), resume: resuming, stop };
+    let summary = rlnav_train::train(&cfg, &opts, &mut |r| {
+        bar.set_position(r.epoch as u64);
+        bar.set_message(format!(
+            "{:.0} steps/s | return {:.1} | success {:.0}% | stage {}",
+            r.steps_per_s,
+            r.mean_return,
+            100.0 * r.success_rate,
+            r.stage_name
+        ));
+        if let Some(e) = &r.eval {
+            bar.println(format!(
+                "epoch {:>5} | {:>9} steps | {:>6.1} s | eval on {}: success {:.1}% collision {:.1}% timeout {:.1}%",
+                r.epoch,
+                r.env_steps,
+                r.wall_s,
+                cfg.eval.scenario,
+                100.0 * e.success_rate,
+                100.0 * e.collision_rate,
+                100.0 * e.timeout_rate
+            ));
+        }
+    })?;
+    bar.finish_and_clear();
+    println!(
+        "{} epochs, {} env steps in {:.1} s ({:.0} steps/s){}",
+        summary.iterations,
+        summary.env_steps,
+        summary.wall_s,
+        summary.steps_per_s,
+        if summary.interrupted { ", stopped early: resume with --resume" } else { "" }
+    );
+    if let Some(e) = summary.final_eval {
+        println!(
+            "evaluation on {} ({} episodes in scenes not seen in training): success {:.1}%, collision {:.1}%, timeout {:.1}%",
+            summary.eval_scenario,
+            e.episodes,
+            100.0 * e.success_rate,
+            100.0 * e.collision_rate,
+            100.0 * e.timeout_rate
+        );
+    }
+    println!("run folder: {}", out.display());
     Ok(())
 }

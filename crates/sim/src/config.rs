@@ -147,3 +147,14 @@ pub fn preset_or_file<T: DeserializeOwned + Validate>(
         known: presets.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
     })
 }
+
+/// A value as a YAML tree, enums written as one-key maps (the form [`from_yaml_str`] reads).
+pub fn to_yaml_value<T: serde::Serialize>(value: &T) -> serde_norway::Value {
+    serde_norway::with::singleton_map_recursive::serialize(value, serde_norway::value::Serializer)
+        .expect("configuration types serialise to YAML")
+}
+
+/// A value as YAML text, enums written as one-key maps (the form [`from_yaml_str`] reads).
+pub fn to_yaml_string<T: serde::Serialize>(value: &T) -> String {
+    serde_norway::to_string(&to_yaml_value(value)).expect("a YAML tree serialises")
+}

@@ -1,0 +1,381 @@
+//! The run configuration: robot, scenarios, task, network, PPO hyper-parameters (rl_games key
+//! names, the article's values as defaults) and the curriculum. YAML, every field defaulted,
+//! unknown keys rejected; `--set a.b.c=VALUE` overrides any value by its dotted path.
+
+use rlnav_policy::NetworkConfig;
+use rlnav_sim::config::{ConfigError, Invalid, Validate, check_positive, check_range};
+use rlnav_sim::task::TaskConfig;
+use serde::{Deserialize, Serialize};
+use serde_norway::Value;
+
+/// Training configurations shipped in `configs/`, embedded: `(name, yaml)`.
+pub const TRAIN_PRESETS: &[(&str, &str)] = &[
+    ("static-mlp", include_str!("../../../configs/static-mlp.yaml")),
+    ("smoke", include_str!("../../../configs/smoke.yaml")),
+];
+
+/// The built-in default run (`rlnav train` with no `--config`).
+pub const DEFAULT_CONFIG: &str = "static-mlp";
+
+/// How the learning rate evolves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LrSchedule {
+    /// Fixed.
+    Constant,
+    /// rl_games' adaptive schedule: divide by 1.5 when the KL divergence of a minibatch
+    /// update exceeds 2 × `kl_threshold`, multiply by 1.5 when it is under half of it.
+    Adaptive,
+    /// Linear decay to zero over `max_epochs`.
+    Linear,
+}
+
+/// PPO hyper-parameters (rl_games names).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PpoConfig {
+    /// Parallel environments.
+    pub num_actors: usize,
+    /// Steps per environment per epoch.
+    pub horizon_length: usize,
+    /// Samples per minibatch (divides `num_actors * horizon_length`).
+    pub minibatch_size: usize,
+    /// Passes over the batch per epoch.
+    pub mini_epochs: usize,
+    /// Discount.
+    pub gamma: f32,
+    /// GAE λ.
+    pub tau: f32,
+    /// Initial learning rate.
+    pub learning_rate: f32,
+    /// Learning-rate schedule.
+    pub lr_schedule: LrSchedule,
+    /// KL target of the adaptive schedule.
+    pub kl_threshold: f32,
+    /// Clip range of the surrogate (and of the value when `clip_value`).
+    pub e_clip: f32,
+    /// Clip the value update like the policy's.
+    pub clip_value: bool,
+    /// Global gradient-norm limit.
+    pub grad_norm: f32,
+    /// Value-loss weight (the loss uses `0.5 * critic_coef * value_loss`).
+    pub critic_coef: f32,
+    /// Entropy bonus weight.
+    pub entropy_coef: f32,
+    /// Weight of the penalty on action means beyond ±1.1.
+    pub bounds_loss_coef: f32,
+    /// Running observation normalisation.
+    pub normalize_input: bool,
+    /// Running value (return) normalisation.
+    pub normalize_value: bool,
+    /// Standardise advantages per minibatch.
+    pub normalize_advantage: bool,
+    /// Truncated BPTT length for LSTM policies (divides `horizon_length`).
+    pub seq_len: usize,
+    /// Epochs (rollout + update) to run.
+    pub max_epochs: usize,
+    /// Simulator worker threads (0: one per core).
+    pub threads: usize,
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        Self {
+            num_actors: 64,
+            horizon_length: 64,
+            minibatch_size: 2048,
+            mini_epochs: 4,
+            gamma: 0.99,
+            tau: 0.95,
+            learning_rate: 3e-4,
+            lr_schedule: LrSchedule::Adaptive,
+            kl_threshold: 0.008,
+            e_clip: 0.2,
+            clip_value: true,
+            grad_norm: 1.0,
+            critic_coef: 2.0,
+            entropy_coef: 0.0,
+            bounds_loss_coef: 0.0001,
+            normalize_input: true,
+            normalize_value: true,
+            normalize_advantage: true,
+            seq_len: 8,
+            max_epochs: 200,
+            threads: 0,
+        }
+    }
+}
+
+/// When a curriculum stage hands over to the next.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AdvanceRule {
+    /// Advance after this many epochs in the stage at the latest (0: no limit).
+    pub max_epochs: usize,
+    /// Advance earlier once the success rate over the last `window` episodes is at least
+    /// this (disabled when absent), but not before `min_epochs`.
+    pub success_rate: Option<f32>,
+    /// Episodes the success rate is measured over.
+    pub window: usize,
+    /// Epochs to spend in the stage before a success-rate advance.
+    pub min_epochs: usize,
+}
+
+impl Default for AdvanceRule {
+    fn default() -> Self {
+        Self { max_epochs: 0, success_rate: None, window: 200, min_epochs: 0 }
+    }
+}
+
+/// One curriculum stage.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StageConfig {
+    /// Name shown in logs.
+    pub name: String,
+    /// Scenario (shipped name or file).
+    pub scenario: String,
+    /// Task values changed in this stage, by dotted key (`reward.goal: 40`).
+    #[serde(default)]
+    pub task: std::collections::BTreeMap<String, Value>,
+    /// When to move on (ignored for the last stage).
+    #[serde(default)]
+    pub advance: AdvanceRule,
+}
+
+/// Periodic evaluation on scenes the policy did not train on.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EvalConfig {
+    /// Scenario (with a generator, every episode is a new scene).
+    pub scenario: String,
+    /// Episodes per evaluation.
+    pub episodes: usize,
+    /// Environments evaluated in parallel (divides `episodes`).
+    pub envs: usize,
+    /// Evaluate every this many epochs (0: only at the end).
+    pub every: usize,
+}
+
+impl Default for EvalConfig {
+    fn default() -> Self {
+        Self { scenario: "random-static".into(), episodes: 200, envs: 50, every: 20 }
+    }
+}
+
+/// A training run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunConfig {
+    /// Run name.
+    pub name: String,
+    /// Run seed.
+    pub seed: u64,
+    /// Robot (shipped name or file).
+    pub robot: String,
+    /// Training scenario when there is no curriculum.
+    pub scenario: String,
+    /// The task.
+    pub task: TaskConfig,
+    /// The network.
+    pub network: NetworkConfig,
+    /// PPO.
+    pub train: PpoConfig,
+    /// Curriculum stages, in order (empty: train on `scenario` throughout).
+    pub curriculum: Vec<StageConfig>,
+    /// Evaluation.
+    pub eval: EvalConfig,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        Self {
+            name: "run".into(),
+            seed: 0,
+            robot: "jetbot".into(),
+            scenario: "random-static".into(),
+            task: TaskConfig::default(),
+            network: NetworkConfig::default(),
+            train: PpoConfig::default(),
+            curriculum: Vec::new(),
+            eval: EvalConfig::default(),
+        }
+    }
+}
+
+impl Validate for RunConfig {
+    fn validate(&self) -> Result<(), Invalid> {
+        self.task.validate().map_err(|e| e.under("task"))?;
+        self.network.check().map_err(|(k, e)| Invalid::new(format!("network.{k}"), e))?;
+        let t = &self.train;
+        let ints = [
+            ("train.num_actors", t.num_actors, 1, 65_536),
+            ("train.horizon_length", t.horizon_length, 1, 100_000),
+            ("train.minibatch_size", t.minibatch_size, 1, 10_000_000),
+            ("train.mini_epochs", t.mini_epochs, 1, 1000),
+            ("train.seq_len", t.seq_len, 1, 10_000),
+            ("train.max_epochs", t.max_epochs, 1, 100_000_000),
+            ("train.threads", t.threads, 0, 1024),
+            ("eval.episodes", self.eval.episodes, 1, 1_000_000),
+            ("eval.envs", self.eval.envs, 1, 65_536),
+        ];
+        for (k, v, lo, hi) in ints {
+            if !(lo..=hi).contains(&v) {
+                return Err(Invalid::new(k, format!("an integer in [{lo}, {hi}], got {v}")));
+            }
+        }
+        let batch = t.num_actors * t.horizon_length;
+        if batch % t.minibatch_size != 0 {
+            return Err(Invalid::new(
+                "train.minibatch_size",
+                format!("a divisor of num_actors * horizon_length = {batch}, got {}", t.minibatch_size),
+            ));
+        }
+        if self.network.is_recurrent() {
+            if t.horizon_length % t.seq_len != 0 {
+                return Err(Invalid::new("train.seq_len", "a divisor of horizon_length"));
+            }
+            if t.minibatch_size % t.seq_len != 0 {
+                return Err(Invalid::new("train.minibatch_size", "a multiple of seq_len for an LSTM policy"));
+            }
+        }
+        if self.eval.episodes % self.eval.envs != 0 {
+            return Err(Invalid::new("eval.envs", "a divisor of eval.episodes"));
+        }
+        check_range("train.gamma", t.gamma, 0.0, 1.0)?;
+        check_range("train.tau", t.tau, 0.0, 1.0)?;
+        check_range("train.learning_rate", t.learning_rate, 1e-8, 1.0)?;
+        check_positive("train.kl_threshold", t.kl_threshold)?;
+        check_range("train.e_clip", t.e_clip, 0.0, 1.0)?;
+        check_positive("train.grad_norm", t.grad_norm)?;
+        check_range("train.critic_coef", t.critic_coef, 0.0, 1000.0)?;
+        check_range("train.entropy_coef", t.entropy_coef, -1.0, 1.0)?;
+        check_range("train.bounds_loss_coef", t.bounds_loss_coef, 0.0, 1000.0)?;
+        for (i, s) in self.curriculum.iter().enumerate() {
+            if let Some(r) = s.advance.success_rate {
+                check_range(&format!("curriculum[{i}].advance.success_rate"), r, 0.0, 1.0)?;
+            }
+            if s.advance.window == 0 {
+                return Err(Invalid::new(format!("curriculum[{i}].advance.window"), "at least 1"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Sets `key` (dotted path, `a.b.c`) in a YAML mapping to `value`, creating maps on the way.
+pub fn set_dotted(root: &mut Value, key: &str, value: Value) -> Result<(), String> {
+    let mut node = root;
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err(format!("`{key}` is not a dotted key path"));
+    }
+    for (i, part) in parts.iter().enumerate() {
+        let Value::Mapping(map) = node else {
+            return Err(format!("`{}` is not a section, cannot set `{key}`", parts[..i].join(".")));
+        };
+        let k = Value::String((*part).to_string());
+        if i + 1 == parts.len() {
+            map.insert(k, value);
+            return Ok(());
+        }
+        node = map.entry(k).or_insert_with(|| Value::Mapping(Default::default()));
+    }
+    unreachable!("the loop returns at the last part")
+}
+
+/// Builds a run config: a preset or file (default: the built-in default), then each
+/// `KEY=VALUE` override (VALUE is YAML: `3`, `0.5`, `true`, `[64, 64]`, `name`).
+pub fn load_run_config(config: Option<&str>, overrides: &[String]) -> Result<RunConfig, ConfigError> {
+    let name = config.unwrap_or(DEFAULT_CONFIG);
+    let (file, text) = match TRAIN_PRESETS.iter().find(|(n, _)| *n == name) {
+        Some((n, t)) => (format!("<embedded config {n}>"), t.to_string()),
+        None if name.ends_with(".yaml") || name.ends_with(".yml") || name.contains('/') => {
+            let text = std::fs::read_to_string(name).map_err(|source| ConfigError::Io { file: name.into(), source })?;
+            (name.to_string(), text)
+        }
+        None => {
+            return Err(ConfigError::UnknownPreset {
+                kind: "training config",
+                name: name.into(),
+                known: TRAIN_PRESETS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
+            });
+        }
+    };
+    let cfg: RunConfig = rlnav_sim::config::from_yaml_str(&file, &text)?;
+    if overrides.is_empty() {
+        return Ok(cfg);
+    }
+    let mut value = rlnav_sim::config::to_yaml_value(&cfg);
+    for o in overrides {
+        let (k, v) = o.split_once('=').ok_or_else(|| ConfigError::Invalid {
+            file: "--set".into(),
+            key: o.clone(),
+            expected: "KEY=VALUE".into(),
+        })?;
+        let v: Value = serde_norway::from_str(v)
+            .map_err(|e| ConfigError::Parse { file: "--set".into(), message: format!("{k}: {e}") })?;
+        set_dotted(&mut value, k.trim(), v).map_err(|e| ConfigError::Invalid {
+            file: "--set".into(),
+            key: k.into(),
+            expected: e,
+        })?;
+    }
+    let text = serde_norway::to_string(&value).expect("a YAML value serialises");
+    rlnav_sim::config::from_yaml_str(&format!("{file} with --set"), &text)
+}
+
+/// Applies a stage's dotted task overrides to a task config.
+pub fn apply_task_overrides(
+    task: &TaskConfig,
+    overrides: &std::collections::BTreeMap<String, Value>,
+    stage: &str,
+) -> Result<TaskConfig, ConfigError> {
+    if overrides.is_empty() {
+        return Ok(task.clone());
+    }
+    let mut value = rlnav_sim::config::to_yaml_value(task);
+    for (k, v) in overrides {
+        set_dotted(&mut value, k, v.clone()).map_err(|e| ConfigError::Invalid {
+            file: format!("<curriculum stage {stage}>"),
+            key: format!("task.{k}"),
+            expected: e,
+        })?;
+    }
+    let text = serde_norway::to_string(&value).expect("a YAML value serialises");
+    rlnav_sim::config::from_yaml_str(&format!("<curriculum stage {stage}>"), &text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_parse_and_overrides_apply() {
+        for (name, _) in TRAIN_PRESETS {
+            load_run_config(Some(name), &[]).unwrap();
+        }
+        let c = load_run_config(
+            None,
+            &["train.max_epochs=3".into(), "task.reward.goal=40".into(), "network.hidden=[32, 32]".into()],
+        )
+        .unwrap();
+        assert_eq!(c.train.max_epochs, 3);
+        assert_eq!(c.task.reward.goal, 40.0);
+        assert_eq!(c.network.hidden, vec![32, 32]);
+    }
+
+    #[test]
+    fn bad_overrides_name_the_key() {
+        let e = load_run_config(None, &["train.max_epohs=3".into()]).unwrap_err().to_string();
+        assert!(e.contains("unknown field `max_epohs`"), "{e}");
+        let e = load_run_config(None, &["train.gamma=2".into()]).unwrap_err().to_string();
+        assert!(e.contains("train.gamma") && e.contains("[0, 1]"), "{e}");
+        let e = load_run_config(None, &["train.minibatch_size=1000".into()]).unwrap_err().to_string();
+        assert!(e.contains("train.minibatch_size") && e.contains("divisor"), "{e}");
+        let e = load_run_config(None, &["nonsense".into()]).unwrap_err().to_string();
+        assert!(e.contains("KEY=VALUE"), "{e}");
+        let e = load_run_config(Some("no-such-config"), &[]).unwrap_err().to_string();
+        assert!(e.contains("static-mlp"), "{e}");
+    }
+}

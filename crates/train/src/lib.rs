@@ -1,0 +1,12 @@
+//! `rlnav-train`: PPO for navigation policies: rollouts, GAE, the update, curriculum,
+//! evaluation, checkpoints and training logs.
+
+pub mod config;
+pub mod eval;
+pub mod gae;
+pub mod ppo;
+pub mod rollout;
+pub mod run;
+
+pub use config::{RunConfig, load_run_config};
+pub use run::{EpochReport, Summary, TrainError, TrainOptions, train};

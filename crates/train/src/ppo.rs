@@ -1,0 +1,509 @@
+//! Proximal policy optimisation with the details that matter in practice (the "37
+//! implementation details", rl_games and rsl_rl): GAE, clipped surrogate, clipped value loss,
+//! advantage standardisation, minibatches over several epochs, global gradient-norm clipping,
+//! the adaptive KL learning rate, entropy and bounds losses, observation and value
+//! normalisation, bootstrapped time-outs, and truncated BPTT for LSTM policies.
+
+use crate::config::{LrSchedule, PpoConfig};
+use crate::gae::compute_gae;
+use crate::rollout::RolloutBuffer;
+use burn::module::{ModuleVisitor, Param, ParamId};
+use burn::nn::LstmState;
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::prelude::*;
+use rand::{RngExt, SeedableRng};
+use rand_distr::StandardNormal;
+use rand_pcg::Pcg64Mcg;
+use rlnav_policy::{ActorCritic, NetworkConfig, RunningMeanStd};
+use rlnav_sim::task::{EpisodeStats, SimError};
+use rlnav_sim::vec_env::VecEnv;
+
+/// Recurrent state of a batch of environments: (cell, hidden), each `[env][units]`.
+pub type RecurrentState = (Vec<f32>, Vec<f32>);
+
+/// `0.5 * ln(2π)`.
+const HALF_LN_2PI: f32 = 0.918_938_5;
+/// Action means beyond this are penalised by the bounds loss (rl_games' soft bound).
+const SOFT_BOUND: f32 = 1.1;
+
+/// What one update measured (means over minibatches).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct UpdateStats {
+    /// Clipped-surrogate loss.
+    pub policy_loss: f32,
+    /// Value loss.
+    pub value_loss: f32,
+    /// Approximate KL(old || new).
+    pub kl: f32,
+    /// Policy entropy.
+    pub entropy: f32,
+    /// Fraction of samples whose ratio was clipped.
+    pub clip_fraction: f32,
+    /// Learning rate after the update.
+    pub learning_rate: f32,
+}
+
+/// The learner: network, optimiser, normalisers, rollout storage.
+pub struct Ppo {
+    cfg: PpoConfig,
+    /// Device gradients are tracked on.
+    device: Device,
+    /// Plain device for inference while collecting experience.
+    plain: Device,
+    /// `None` only while the optimiser is stepping it.
+    model: Option<ActorCritic>,
+    optim: ModuleOptimizer,
+    /// Running observation statistics.
+    pub obs_norm: RunningMeanStd,
+    /// Running return statistics (value normalisation).
+    pub value_norm: RunningMeanStd,
+    lr: f32,
+    rng: Pcg64Mcg,
+    buffer: RolloutBuffer,
+    /// Per-environment recurrent state (cell, hidden), `[env][units]`.
+    state: Option<RecurrentState>,
+    act_dim: usize,
+}
+
+/// Gradient-norm clipping over all parameters together (burn's own clipping is per tensor).
+struct GlobalNorm<'a> {
+    grads: &'a mut GradientsParams,
+    sum_sq: f32,
+    scale: Option<f32>,
+}
+
+impl ModuleVisitor for GlobalNorm<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        let id: ParamId = param.id;
+        match self.scale {
+            None => {
+                if let Some(g) = self.grads.get::<D>(id) {
+                    self.sum_sq += g.powf_scalar(2.0).sum().into_scalar::<f32>();
+                }
+            }
+            Some(s) => {
+                if let Some(g) = self.grads.remove::<D>(id) {
+                    self.grads.register::<D>(id, g * s);
+                }
+            }
+        }
+    }
+}
+
+fn tensor2(data: Vec<f32>, rows: usize, cols: usize, device: &Device) -> Tensor<2> {
+    Tensor::from_data(TensorData::new(data, [rows, cols]), device)
+}
+
+fn tensor1(data: Vec<f32>, device: &Device) -> Tensor<1> {
+    let n = data.len();
+    Tensor::from_data(TensorData::new(data, [n]), device)
+}
+
+fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data().try_to_vec::<f32>().expect("float tensor")
+}
+
+impl Ppo {
+    /// A new learner for observations of `obs_dim` and `act_dim` actions, on `plain` (with
+    /// gradients on `plain.autodiff()`).
+    pub fn new(
+        cfg: &PpoConfig,
+        network: &NetworkConfig,
+        obs_dim: usize,
+        act_dim: usize,
+        plain: Device,
+        seed: u64,
+    ) -> Self {
+        plain.seed(seed);
+        let device = plain.clone().autodiff();
+        let model = ActorCritic::new(network, obs_dim, act_dim, &device);
+        let units = model.lstm_units();
+        Self {
+            cfg: cfg.clone(),
+            optim: AdamConfig::new().with_epsilon(1e-8).init(),
+            model: Some(model),
+            device,
+            plain,
+            obs_norm: RunningMeanStd::new(obs_dim),
+            value_norm: RunningMeanStd::new(1),
+            lr: cfg.learning_rate,
+            rng: Pcg64Mcg::seed_from_u64(seed ^ 0x9e37_79b9_7f4a_7c15),
+            buffer: RolloutBuffer::new(cfg.num_actors, cfg.horizon_length, obs_dim, act_dim, units, cfg.seq_len),
+            state: (units > 0).then(|| (vec![0.0; cfg.num_actors * units], vec![0.0; cfg.num_actors * units])),
+            act_dim,
+        }
+    }
+
+    /// The network (on the autodiff device).
+    pub fn model(&self) -> &ActorCritic {
+        self.model.as_ref().expect("the network is only absent during a step")
+    }
+
+    /// Replaces network and optimiser state (resuming a run).
+    pub fn restore(&mut self, model: ActorCritic, optim: ModuleOptimizer, lr: f32) {
+        self.model = Some(model);
+        self.optim = optim;
+        self.lr = lr;
+    }
+
+    /// The optimiser (for checkpoints).
+    pub fn optimizer(&self) -> &ModuleOptimizer {
+        &self.optim
+    }
+
+    /// Current learning rate.
+    pub fn learning_rate(&self) -> f32 {
+        self.lr
+    }
+
+    /// Reseeds action sampling (each epoch draws from `(seed, epoch)`, so a resumed run
+    /// samples as an uninterrupted one would).
+    pub fn reseed(&mut self, seed: u64, epoch: u64) {
+        self.rng = Pcg64Mcg::seed_from_u64(rlnav_sim::vec_env::env_seed(seed, epoch as usize));
+    }
+
+    /// Forgets recurrent state (after the environments were rebuilt).
+    pub fn reset_state(&mut self) {
+        if let Some((c, h)) = &mut self.state {
+            c.fill(0.0);
+            h.fill(0.0);
+        }
+    }
+
+    fn normalized(&mut self, raw: &[f32], update: bool) -> Vec<f32> {
+        let mut x = raw.to_vec();
+        if self.cfg.normalize_input {
+            if update {
+                self.obs_norm.update(raw);
+            }
+            self.obs_norm.normalize(&mut x);
+        }
+        x
+    }
+
+    fn denorm_values(&self, v: &mut [f32]) {
+        if self.cfg.normalize_value {
+            self.value_norm.denormalize(v);
+        }
+    }
+
+    /// Runs the inference network on normalised observations `[n][obs]` with recurrent state
+    /// rows `rows` (all environments when `None`); returns means `[n][act]` and values in
+    /// return units, and the next state.
+    fn infer(
+        &self,
+        net: &ActorCritic,
+        obs: Vec<f32>,
+        state: Option<RecurrentState>,
+    ) -> (Vec<f32>, Vec<f32>, Option<RecurrentState>) {
+        let n = obs.len() / self.buffer.obs_dim;
+        let x = tensor2(obs, n, self.buffer.obs_dim, &self.plain);
+        let units = net.lstm_units();
+        let st =
+            state.map(|(c, h)| LstmState::new(tensor2(c, n, units, &self.plain), tensor2(h, n, units, &self.plain)));
+        let (mu, v, next) = net.step(x, st);
+        let mut v = to_vec(v);
+        self.denorm_values(&mut v);
+        (to_vec(mu), v, next.map(|s| (to_vec(s.cell), to_vec(s.hidden))))
+    }
+
+    /// Collects one epoch of experience from `env` (which must have `num_actors`
+    /// environments); finished episodes' statistics go to `episodes`.
+    pub fn collect(&mut self, env: &mut VecEnv, episodes: &mut Vec<EpisodeStats>) -> Result<(), SimError> {
+        let (n, d, a) = (self.buffer.n_envs, self.buffer.obs_dim, self.act_dim);
+        assert_eq!(env.len(), n, "one environment per actor");
+        let net = self.model().valid();
+        let log_std: Vec<f32> = to_vec(net.log_std.val());
+        let std: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
+        let mut actions = vec![[0.0f32; 2]; n];
+        let units = net.lstm_units();
+        for t in 0..self.buffer.horizon {
+            let obs = self.normalized(&env.obs, true);
+            if units > 0 && t % self.cfg.seq_len == 0 {
+                let (c, h) = self.state.as_ref().expect("recurrent state");
+                let k = t / self.cfg.seq_len;
+                self.buffer.cells[k * n * units..(k + 1) * n * units].copy_from_slice(c);
+                self.buffer.hiddens[k * n * units..(k + 1) * n * units].copy_from_slice(h);
+            }
+            self.buffer.obs[t * n * d..(t + 1) * n * d].copy_from_slice(&obs);
+            let state = self.state.take();
+            let (mu, values, next) = self.infer(&net, obs, state);
+            self.state = next;
+            for e in 0..n {
+                let i = t * n + e;
+                let mut logp = 0.0;
+                for j in 0..a {
+                    let eps: f32 = self.rng.sample(StandardNormal);
+                    let act = mu[e * a + j] + std[j] * eps;
+                    self.buffer.actions[i * a + j] = act;
+                    self.buffer.mus[i * a + j] = mu[e * a + j];
+                    logp += -0.5 * eps * eps - log_std[j] - HALF_LN_2PI;
+                    if j < 2 {
+                        actions[e][j] = act;
+                    }
+                }
+                self.buffer.log_probs[i] = logp;
+                self.buffer.values[i] = values[e];
+            }
+            env.step(&actions)?;
+            // Time-outs are not failures of the policy: bootstrap them with γ·V(final obs).
+            let truncated: Vec<usize> = (0..n).filter(|e| env.truncated[*e]).collect();
+            let mut bootstrap = vec![0.0; n];
+            if !truncated.is_empty() {
+                let mut rows = Vec::with_capacity(truncated.len() * d);
+                for &e in &truncated {
+                    rows.extend_from_slice(&env.final_obs[e * d..(e + 1) * d]);
+                }
+                let rows = self.normalized(&rows, false);
+                let st = self.state.as_ref().map(|(c, h)| {
+                    let pick =
+                        |v: &Vec<f32>| truncated.iter().flat_map(|e| v[e * units..(e + 1) * units].to_vec()).collect();
+                    (pick(c), pick(h))
+                });
+                let (_, v, _) = self.infer(&net, rows, st);
+                for (k, &e) in truncated.iter().enumerate() {
+                    bootstrap[e] = self.cfg.gamma * v[k];
+                }
+            }
+            for e in 0..n {
+                let i = t * n + e;
+                let done = env.terminated[e] || env.truncated[e];
+                self.buffer.rewards[i] = env.rewards[e] + bootstrap[e];
+                self.buffer.dones[i] = done;
+                if t + 1 < self.buffer.horizon {
+                    self.buffer.starts[i + n] = done;
+                }
+                if let Some(s) = env.finished[e] {
+                    episodes.push(s);
+                }
+                if done && let Some((c, h)) = &mut self.state {
+                    c[e * units..(e + 1) * units].fill(0.0);
+                    h[e * units..(e + 1) * units].fill(0.0);
+                }
+            }
+        }
+        // The first observation of the next rollout starts an episode where the last step ended one.
+        for e in 0..n {
+            self.buffer.starts[e] = self.buffer.dones[(self.buffer.horizon - 1) * n + e];
+        }
+        let obs = self.normalized(&env.obs, false);
+        let (_, last_values, _) = self.infer(&net, obs, self.state.clone());
+        let b = &mut self.buffer;
+        compute_gae(
+            &b.rewards,
+            &b.values,
+            &b.dones,
+            &last_values,
+            n,
+            self.cfg.gamma,
+            self.cfg.tau,
+            &mut b.advantages,
+            &mut b.returns,
+        );
+        Ok(())
+    }
+
+    /// Minibatch order: sample indices, or (for LSTM) sequence indices.
+    fn order(&mut self, units: usize) -> Vec<usize> {
+        let count = if units > 0 { self.buffer.len() / self.cfg.seq_len } else { self.buffer.len() };
+        let mut idx: Vec<usize> = (0..count).collect();
+        for i in (1..idx.len()).rev() {
+            let j = self.rng.random_range(0..=i);
+            idx.swap(i, j);
+        }
+        idx
+    }
+
+    /// Updates the network on the collected epoch.
+    pub fn update(&mut self) -> UpdateStats {
+        let (n, d, a) = (self.buffer.n_envs, self.buffer.obs_dim, self.act_dim);
+        let units = self.model().lstm_units();
+        let seq = if units > 0 { self.cfg.seq_len } else { 1 };
+        // Value targets and old values in the network's (normalised) units.
+        let mut targets = self.buffer.returns.clone();
+        let mut old_values = self.buffer.values.clone();
+        if self.cfg.normalize_value {
+            self.value_norm.update(&self.buffer.returns);
+            let clip = self.value_norm.clip;
+            self.value_norm.clip = f32::INFINITY;
+            self.value_norm.normalize(&mut targets);
+            self.value_norm.normalize(&mut old_values);
+            self.value_norm.clip = clip;
+        }
+        let old_log_std: Vec<f32> = to_vec(self.model().log_std.val());
+        let mb_items = self.cfg.minibatch_size / seq;
+        let mut stats = UpdateStats::default();
+        let mut count = 0.0f32;
+        for _ in 0..self.cfg.mini_epochs {
+            let order = self.order(units);
+            for chunk in order.chunks(mb_items) {
+                // Sample index of item k at time offset s (t-major within sequences).
+                let index = |item: usize, s: usize| {
+                    if units > 0 {
+                        let (k, e) = (item / n, item % n);
+                        (k * seq + s) * n + e
+                    } else {
+                        item
+                    }
+                };
+                let rows = chunk.len() * seq;
+                let mut obs = Vec::with_capacity(rows * d);
+                let mut act = Vec::with_capacity(rows * a);
+                let mut old_mu_v = Vec::with_capacity(rows * a);
+                let (mut old_logp, mut adv, mut ret, mut old_v) = (
+                    Vec::with_capacity(rows),
+                    Vec::with_capacity(rows),
+                    Vec::with_capacity(rows),
+                    Vec::with_capacity(rows),
+                );
+                let mut starts = Vec::with_capacity(rows);
+                for s in 0..seq {
+                    for &item in chunk {
+                        let i = index(item, s);
+                        obs.extend_from_slice(&self.buffer.obs[i * d..(i + 1) * d]);
+                        act.extend_from_slice(&self.buffer.actions[i * a..(i + 1) * a]);
+                        old_mu_v.extend_from_slice(&self.buffer.mus[i * a..(i + 1) * a]);
+                        old_logp.push(self.buffer.log_probs[i]);
+                        adv.push(self.buffer.advantages[i]);
+                        ret.push(targets[i]);
+                        old_v.push(old_values[i]);
+                        starts.push(if self.buffer.starts[i] { 0.0f32 } else { 1.0 });
+                    }
+                }
+                if self.cfg.normalize_advantage && adv.len() > 1 {
+                    let mean = adv.iter().sum::<f32>() / adv.len() as f32;
+                    let var = adv.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / adv.len() as f32;
+                    let inv = 1.0 / (var.sqrt() + 1e-8);
+                    adv.iter_mut().for_each(|x| *x = (*x - mean) * inv);
+                }
+                let dev = self.device.clone();
+                let (mu, v) = if units > 0 {
+                    let b = chunk.len();
+                    let cell: Vec<f32> = chunk
+                        .iter()
+                        .flat_map(|item| self.buffer.cells[item * units..(item + 1) * units].to_vec())
+                        .collect();
+                    let hidden: Vec<f32> = chunk
+                        .iter()
+                        .flat_map(|item| self.buffer.hiddens[item * units..(item + 1) * units].to_vec())
+                        .collect();
+                    let mut state =
+                        Some(LstmState::new(tensor2(cell, b, units, &dev), tensor2(hidden, b, units, &dev)));
+                    let (mut mus, mut vs) = (Vec::with_capacity(seq), Vec::with_capacity(seq));
+                    for s in 0..seq {
+                        let x = tensor2(obs[s * b * d..(s + 1) * b * d].to_vec(), b, d, &dev);
+                        let mask = tensor2(starts[s * b..(s + 1) * b].to_vec(), b, 1, &dev);
+                        let st = state.take().map(|st| LstmState::new(st.cell * mask.clone(), st.hidden * mask));
+                        let (mu, v, next) = self.model().step(x, st);
+                        state = next;
+                        mus.push(mu);
+                        vs.push(v);
+                    }
+                    (Tensor::cat(mus, 0), Tensor::cat(vs, 0))
+                } else {
+                    self.model().forward(tensor2(obs, rows, d, &dev))
+                };
+                let act = tensor2(act, rows, a, &dev);
+                let old_logp = tensor1(old_logp, &dev);
+                let adv = tensor1(adv, &dev);
+                let ret = tensor1(ret, &dev);
+                let old_v = tensor1(old_v, &dev);
+                let log_std = self.model().log_std.val();
+                let log_std2 = log_std.clone().unsqueeze::<2>();
+                let z = (act - mu.clone()) / log_std2.clone().exp();
+                let logp: Tensor<1> =
+                    (z.powf_scalar(2.0) * -0.5 - log_std2.clone() - HALF_LN_2PI).sum_dim(1).squeeze_dim(1);
+                let ratio = (logp - old_logp).exp();
+                let e = self.cfg.e_clip;
+                let surr = (ratio.clone() * adv.clone()).min_pair(ratio.clone().clamp(1.0 - e, 1.0 + e) * adv);
+                let policy_loss = surr.mean().neg();
+                let value_loss = if self.cfg.clip_value {
+                    let clipped = old_v.clone() + (v.clone() - old_v).clamp(-e, e);
+                    (v - ret.clone()).powf_scalar(2.0).max_pair((clipped - ret).powf_scalar(2.0)).mean()
+                } else {
+                    (v - ret).powf_scalar(2.0).mean()
+                };
+                let entropy = (log_std.clone() + 0.5 + HALF_LN_2PI).sum();
+                let bounds = ((mu.clone() - SOFT_BOUND).clamp_min(0.0).powf_scalar(2.0)
+                    + (mu.clone() + SOFT_BOUND).clamp_max(0.0).powf_scalar(2.0))
+                .sum_dim(1)
+                .mean();
+                let loss = policy_loss.clone() + value_loss.clone() * (0.5 * self.cfg.critic_coef)
+                    - entropy.clone() * self.cfg.entropy_coef
+                    + bounds * self.cfg.bounds_loss_coef;
+                let mut grads = GradientsParams::from_grads(loss.backward(), self.model());
+                let mut clip = GlobalNorm { grads: &mut grads, sum_sq: 0.0, scale: None };
+                self.model().visit(&mut clip);
+                let norm = clip.sum_sq.sqrt();
+                if norm > self.cfg.grad_norm {
+                    clip.scale = Some(self.cfg.grad_norm / norm);
+                    self.model().visit(&mut clip);
+                }
+                // The optimiser takes the network by value; moving it out (rather than cloning)
+                // lets burn update the parameters in place.
+                let model = self.model.take().expect("the network is only absent during a step");
+                self.model = Some(self.optim.step(self.lr as f64, model, grads));
+
+                // KL(old || new) of the diagonal Gaussians (for the adaptive learning rate) and
+                // the clipped fraction, from values read after the backward pass (burn's tape
+                // allows one backward, and detach() would cut the graph the loss needs).
+                let new_mu = to_vec(mu.clone());
+                let new_ls = to_vec(log_std.clone());
+                let ratios = to_vec(ratio.clone());
+                let mut kl = 0.0f64;
+                for (m_new, m_old) in new_mu.chunks(a).zip(old_mu_v.chunks(a)) {
+                    for j in 0..a {
+                        let (ls_new, ls_old) = (new_ls[j], old_log_std[j]);
+                        let var_new = (2.0 * ls_new).exp();
+                        kl += (ls_new - ls_old
+                            + ((2.0 * ls_old).exp() + (m_old[j] - m_new[j]).powi(2)) / (2.0 * var_new)
+                            - 0.5) as f64;
+                    }
+                }
+                let kl = (kl / rows as f64) as f32;
+                let clipped = ratios.iter().filter(|r| (*r - 1.0).abs() > e).count() as f32 / rows as f32;
+
+                if self.cfg.lr_schedule == LrSchedule::Adaptive && kl.is_finite() {
+                    if kl > 2.0 * self.cfg.kl_threshold {
+                        self.lr = (self.lr / 1.5).max(1e-6);
+                    } else if kl < 0.5 * self.cfg.kl_threshold {
+                        self.lr = (self.lr * 1.5).min(1e-2);
+                    }
+                }
+                stats.policy_loss += policy_loss.into_scalar::<f32>();
+                stats.value_loss += value_loss.into_scalar::<f32>();
+                stats.entropy += entropy.into_scalar::<f32>();
+                stats.kl += kl;
+                stats.clip_fraction += clipped;
+                count += 1.0;
+            }
+        }
+        stats.policy_loss /= count;
+        stats.value_loss /= count;
+        stats.entropy /= count;
+        stats.kl /= count;
+        stats.clip_fraction /= count;
+        stats.learning_rate = self.lr;
+        stats
+    }
+
+    /// Sets the learning rate of the linear schedule for `epoch` of `max_epochs`.
+    pub fn schedule(&mut self, epoch: usize) {
+        if self.cfg.lr_schedule == LrSchedule::Linear {
+            let frac = 1.0 - epoch as f32 / self.cfg.max_epochs as f32;
+            self.lr = (self.cfg.learning_rate * frac).max(1e-7);
+        }
+    }
+
+    /// Deterministic actions (the Gaussian means) for raw observations `[n][obs]`, carrying
+    /// `state` for recurrent policies; used by evaluation.
+    pub fn act_mean(&self, raw_obs: &[f32], state: Option<RecurrentState>) -> (Vec<f32>, Option<RecurrentState>) {
+        let mut x = raw_obs.to_vec();
+        if self.cfg.normalize_input {
+            self.obs_norm.normalize(&mut x);
+        }
+        let net = self.model().valid();
+        let (mu, _, next) = self.infer(&net, x, state);
+        (mu, next)
+    }
+}

@@ -1,0 +1,473 @@
+//! A training run: curriculum stages, epochs of rollout + update, periodic evaluation on
+//! unseen scenes, checkpoints, and the run folder's logs.
+
+use crate::config::{RunConfig, StageConfig, apply_task_overrides};
+use crate::eval::{EvalResult, evaluate};
+use crate::ppo::{Ppo, UpdateStats};
+use burn::optim::AdamConfig;
+use burn::store::{BurnpackStore, ModuleSnapshot};
+use rlnav_policy::{ActorCritic, RunningMeanStd, training_device};
+use rlnav_sim::RobotSpec;
+use rlnav_sim::config::ConfigError;
+use rlnav_sim::scenario::ScenarioSpec;
+use rlnav_sim::task::{EnvSetup, EpisodeStats, Outcome, SimError};
+use rlnav_sim::vec_env::VecEnv;
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// Errors of a training run.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// Configuration.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// Simulation.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Files of the run folder.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file or folder.
+        path: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// `--resume` was given something that is not a run folder, or an incompatible one.
+    #[error("cannot resume from {path}: {message}")]
+    Resume {
+        /// The folder.
+        path: String,
+        /// Why.
+        message: String,
+    },
+}
+
+fn io_err(path: &Path, e: impl std::fmt::Display) -> TrainError {
+    TrainError::Io { path: path.display().to_string(), message: e.to_string() }
+}
+
+/// What happened in one epoch, for progress displays and logs.
+#[derive(Clone, Debug, Serialize)]
+pub struct EpochReport {
+    /// Epoch number (1-based).
+    pub epoch: usize,
+    /// Epochs planned.
+    pub max_epochs: usize,
+    /// Environment steps so far.
+    pub env_steps: u64,
+    /// Wall-clock seconds so far (over all sessions of a resumed run).
+    pub wall_s: f64,
+    /// Environment steps per second in this epoch (rollout and update).
+    pub steps_per_s: f64,
+    /// Mean return of episodes finished this epoch.
+    pub mean_return: f32,
+    /// Mean length (steps) of episodes finished this epoch.
+    pub mean_length: f32,
+    /// Outcome rates of episodes finished this epoch.
+    pub success_rate: f32,
+    /// See `success_rate`.
+    pub collision_rate: f32,
+    /// See `success_rate`.
+    pub timeout_rate: f32,
+    /// Episodes finished this epoch.
+    pub episodes: usize,
+    /// Curriculum stage (0-based) and its name.
+    pub stage: usize,
+    /// Stage name.
+    pub stage_name: String,
+    /// The update's statistics.
+    #[serde(skip)]
+    pub update: UpdateStats,
+    /// Seconds spent collecting experience this epoch.
+    pub rollout_s: f64,
+    /// Seconds spent updating the network this epoch.
+    pub update_s: f64,
+    /// Evaluation, when one ran after this epoch.
+    pub eval: Option<EvalResult>,
+}
+
+/// The run's final record (`summary.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Summary {
+    /// Run name.
+    pub name: String,
+    /// Epochs completed.
+    pub iterations: usize,
+    /// Environment steps.
+    pub env_steps: u64,
+    /// Wall-clock seconds.
+    pub wall_s: f64,
+    /// Environment steps per second, overall.
+    pub steps_per_s: f64,
+    /// Whether the run was stopped before `max_epochs` (Ctrl-C).
+    pub interrupted: bool,
+    /// Final evaluation on scenes not used in training.
+    pub final_eval: Option<EvalResult>,
+    /// Scenario of the final evaluation.
+    pub eval_scenario: String,
+    /// Best evaluation success rate seen, and its epoch.
+    pub best_success_rate: f32,
+    /// Epoch of the best evaluation.
+    pub best_epoch: usize,
+}
+
+/// Trainer state saved with each checkpoint.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct TrainerState {
+    epoch: usize,
+    env_steps: u64,
+    wall_s: f64,
+    learning_rate: f32,
+    stage: usize,
+    stage_epochs: usize,
+    obs_norm: RunningMeanStd,
+    value_norm: RunningMeanStd,
+    best_success_rate: f32,
+    best_epoch: usize,
+}
+
+/// Options of [`train`].
+pub struct TrainOptions {
+    /// Run folder (created; must not already hold a run unless resuming).
+    pub out: PathBuf,
+    /// Continue the run in `out` from its last checkpoint.
+    pub resume: bool,
+    /// Set to stop after the current epoch (Ctrl-C); a checkpoint is written first.
+    pub stop: Arc<AtomicBool>,
+}
+
+fn stages(cfg: &RunConfig) -> Vec<StageConfig> {
+    if cfg.curriculum.is_empty() {
+        vec![StageConfig {
+            name: "main".into(),
+            scenario: cfg.scenario.clone(),
+            task: Default::default(),
+            advance: Default::default(),
+        }]
+    } else {
+        cfg.curriculum.clone()
+    }
+}
+
+fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Arc<EnvSetup>, TrainError> {
+    let task = apply_task_overrides(&cfg.task, &stage.task, &stage.name)?;
+    let setup = EnvSetup::new(ScenarioSpec::load(&stage.scenario)?, RobotSpec::load(&cfg.robot)?, task)?;
+    Ok(Arc::new(setup))
+}
+
+fn eval_setup(cfg: &RunConfig) -> Result<Arc<EnvSetup>, TrainError> {
+    let setup = EnvSetup::new(ScenarioSpec::load(&cfg.eval.scenario)?, RobotSpec::load(&cfg.robot)?, cfg.task.clone())?;
+    Ok(Arc::new(setup))
+}
+
+/// Evaluation seeds are far from every training environment's stream.
+fn eval_seed(seed: u64) -> u64 {
+    seed ^ 0xE7A1_5EED_0000_0000
+}
+
+/// Writes `write(tmp)` into a fresh folder, then swaps it in for `dir` (no half-written
+/// checkpoint is ever left under `dir`'s name).
+fn atomic_dir(dir: &Path, write: impl FnOnce(&Path) -> Result<(), TrainError>) -> Result<(), TrainError> {
+    let tmp = dir.with_extension("tmp");
+    let old = dir.with_extension("old");
+    let _ = fs::remove_dir_all(&tmp);
+    fs::create_dir_all(&tmp).map_err(|e| io_err(&tmp, e))?;
+    write(&tmp)?;
+    let _ = fs::remove_dir_all(&old);
+    if dir.exists() {
+        fs::rename(dir, &old).map_err(|e| io_err(dir, e))?;
+    }
+    fs::rename(&tmp, dir).map_err(|e| io_err(dir, e))?;
+    let _ = fs::remove_dir_all(&old);
+    Ok(())
+}
+
+fn save_checkpoint(dir: &Path, ppo: &Ppo, state: &TrainerState) -> Result<(), TrainError> {
+    atomic_dir(dir, |tmp| {
+        let mut store = BurnpackStore::from_file(tmp.join("model.bpk")).overwrite(true);
+        ppo.model().save_into(&mut store).map_err(|e| io_err(&tmp.join("model.bpk"), e))?;
+        ppo.optimizer().save(tmp.join("optimizer.bpk")).map_err(|e| io_err(&tmp.join("optimizer.bpk"), e))?;
+        let json = serde_json::to_string_pretty(state).expect("state serialises");
+        fs::write(tmp.join("state.json"), json).map_err(|e| io_err(&tmp.join("state.json"), e))
+    })
+}
+
+/// Loads a network saved by a run with configuration `cfg` from checkpoint folder `dir`.
+pub fn load_model(
+    cfg: &RunConfig,
+    dir: &Path,
+    obs_dim: usize,
+    device: &burn::prelude::Device,
+) -> Result<ActorCritic, TrainError> {
+    let mut model = ActorCritic::new(&cfg.network, obs_dim, 2, device);
+    let path = dir.join("model.bpk");
+    let mut store = BurnpackStore::from_file(&path);
+    let result = model.load_from(&mut store).map_err(|e| TrainError::Resume {
+        path: path.display().to_string(),
+        message: format!("not a readable network: {e}"),
+    })?;
+    if !result.is_success() || !result.missing.is_empty() || !result.unused.is_empty() {
+        return Err(TrainError::Resume {
+            path: path.display().to_string(),
+            message: format!(
+                "the checkpoint's network does not match the configured one (hidden {:?}, lstm {}): {} errors, missing {:?}, unexpected {:?}",
+                cfg.network.hidden,
+                cfg.network.lstm_units,
+                result.errors.len(),
+                result.missing.iter().map(|m| &m.0).collect::<Vec<_>>(),
+                result.unused
+            ),
+        });
+    }
+    Ok(model)
+}
+
+/// Success rates of the last `window` episodes.
+struct Window {
+    outcomes: VecDeque<bool>,
+    size: usize,
+}
+
+impl Window {
+    fn push(&mut self, success: bool) {
+        self.outcomes.push_back(success);
+        while self.outcomes.len() > self.size {
+            self.outcomes.pop_front();
+        }
+    }
+    fn rate(&self) -> Option<f32> {
+        (self.outcomes.len() == self.size)
+            .then(|| self.outcomes.iter().filter(|s| **s).count() as f32 / self.size as f32)
+    }
+}
+
+const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate";
+
+fn csv_row(r: &EpochReport) -> String {
+    let u = &r.update;
+    let (es, ec, et) = match &r.eval {
+        Some(e) => (e.success_rate.to_string(), e.collision_rate.to_string(), e.timeout_rate.to_string()),
+        None => (String::new(), String::new(), String::new()),
+    };
+    format!(
+        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et}",
+        r.epoch,
+        r.env_steps,
+        r.wall_s,
+        r.steps_per_s,
+        r.mean_return,
+        r.mean_length,
+        r.success_rate,
+        r.collision_rate,
+        r.timeout_rate,
+        r.episodes,
+        u.policy_loss,
+        u.value_loss,
+        u.kl,
+        u.learning_rate,
+        u.entropy,
+        u.clip_fraction,
+        r.stage
+    )
+}
+
+/// Reads a run folder's resolved configuration.
+pub fn read_run_config(dir: &Path) -> Result<RunConfig, TrainError> {
+    let path = dir.join("config.yaml");
+    if !path.is_file() || !dir.join("checkpoint").join("state.json").is_file() {
+        return Err(TrainError::Resume {
+            path: dir.display().to_string(),
+            message: "not a run folder (needs config.yaml and checkpoint/state.json)".into(),
+        });
+    }
+    Ok(rlnav_sim::config::from_yaml_file(&path)?)
+}
+
+/// Trains a policy as `cfg` says, writing the run folder `opts.out`. Calls `progress` after
+/// every epoch.
+pub fn train(
+    cfg: &RunConfig,
+    opts: &TrainOptions,
+    progress: &mut dyn FnMut(&EpochReport),
+) -> Result<Summary, TrainError> {
+    let out = &opts.out;
+    let stages = stages(cfg);
+    let setups = stages.iter().map(|s| stage_setup(cfg, s)).collect::<Result<Vec<_>, _>>()?;
+    let obs_dim = setups[0].obs_dim();
+    if let Some((s, _)) = setups.iter().zip(&stages).find(|(s, _)| s.obs_dim() != obs_dim) {
+        return Err(TrainError::Config(ConfigError::Invalid {
+            file: "<curriculum>".into(),
+            key: "curriculum".into(),
+            expected: format!("stages with the same observation length ({obs_dim}), got {}", s.obs_dim()),
+        }));
+    }
+    let eval = eval_setup(cfg)?;
+    let plain = training_device();
+    let mut ppo = Ppo::new(&cfg.train, &cfg.network, obs_dim, 2, plain.clone(), cfg.seed);
+
+    let mut st = TrainerState {
+        epoch: 0,
+        env_steps: 0,
+        wall_s: 0.0,
+        learning_rate: cfg.train.learning_rate,
+        stage: 0,
+        stage_epochs: 0,
+        obs_norm: RunningMeanStd::new(obs_dim),
+        value_norm: RunningMeanStd::new(1),
+        best_success_rate: -1.0,
+        best_epoch: 0,
+    };
+    if opts.resume {
+        let saved = read_run_config(out)?;
+        if saved.network != cfg.network {
+            return Err(TrainError::Resume {
+                path: out.display().to_string(),
+                message: "the run's network configuration differs from the one given".into(),
+            });
+        }
+        let ck = out.join("checkpoint");
+        let text = fs::read_to_string(ck.join("state.json")).map_err(|e| io_err(&ck.join("state.json"), e))?;
+        st = serde_json::from_str(&text)
+            .map_err(|e| TrainError::Resume { path: ck.display().to_string(), message: e.to_string() })?;
+        let model = load_model(cfg, &ck, obs_dim, &plain.clone().autodiff())?;
+        let optim = AdamConfig::new().with_epsilon(1e-8).init().load(ck.join("optimizer.bpk")).map_err(|e| {
+            TrainError::Resume { path: ck.join("optimizer.bpk").display().to_string(), message: e.to_string() }
+        })?;
+        ppo.restore(model, optim, st.learning_rate);
+        ppo.obs_norm = st.obs_norm.clone();
+        ppo.value_norm = st.value_norm.clone();
+    } else {
+        if out.join("config.yaml").exists() {
+            return Err(TrainError::Io {
+                path: out.display().to_string(),
+                message: "already holds a run; choose another --out, or --resume it".into(),
+            });
+        }
+        fs::create_dir_all(out).map_err(|e| io_err(out, e))?;
+        fs::write(out.join("config.yaml"), rlnav_sim::config::to_yaml_string(cfg)).map_err(|e| io_err(out, e))?;
+        fs::write(out.join("metrics.csv"), format!("{CSV_HEADER}\n")).map_err(|e| io_err(out, e))?;
+    }
+    let mut csv = fs::OpenOptions::new().append(true).open(out.join("metrics.csv")).map_err(|e| io_err(out, e))?;
+
+    let threads = cfg.train.threads;
+    let env_for = |stage: usize, epoch: usize| {
+        VecEnv::new(
+            setups[stage].clone(),
+            cfg.train.num_actors,
+            rlnav_sim::vec_env::env_seed(cfg.seed, epoch << 8 | stage),
+            threads,
+        )
+    };
+    let mut env = env_for(st.stage, st.epoch)?;
+    let mut window = Window { outcomes: VecDeque::new(), size: stages[st.stage].advance.window };
+    let session = Instant::now();
+    let wall_before = st.wall_s;
+    let mut episodes: Vec<EpisodeStats> = Vec::new();
+    let mut last_eval = None;
+    let mut interrupted = false;
+
+    while st.epoch < cfg.train.max_epochs {
+        if opts.stop.load(Ordering::Relaxed) {
+            interrupted = true;
+            break;
+        }
+        let t0 = Instant::now();
+        ppo.reseed(cfg.seed, st.epoch as u64);
+        ppo.schedule(st.epoch);
+        episodes.clear();
+        ppo.collect(&mut env, &mut episodes)?;
+        let t1 = Instant::now();
+        let update = ppo.update();
+        let t2 = Instant::now();
+        st.epoch += 1;
+        st.stage_epochs += 1;
+        let steps = (cfg.train.num_actors * cfg.train.horizon_length) as u64;
+        st.env_steps += steps;
+        st.wall_s = wall_before + session.elapsed().as_secs_f64();
+        for e in &episodes {
+            window.push(e.outcome == Outcome::Success);
+        }
+        let stats = EvalResult::from_episodes(&episodes);
+        let eval_now = (cfg.eval.every > 0 && st.epoch % cfg.eval.every == 0) || st.epoch == cfg.train.max_epochs;
+        let eval_result = if eval_now {
+            let (r, _) = evaluate(&ppo, eval.clone(), cfg.eval.episodes, cfg.eval.envs, eval_seed(cfg.seed), threads)?;
+            last_eval = Some(r);
+            Some(r)
+        } else {
+            None
+        };
+        let report = EpochReport {
+            epoch: st.epoch,
+            max_epochs: cfg.train.max_epochs,
+            env_steps: st.env_steps,
+            wall_s: st.wall_s,
+            steps_per_s: steps as f64 / (t2 - t0).as_secs_f64(),
+            mean_return: stats.mean_return,
+            mean_length: episodes.iter().map(|e| e.length as f32).sum::<f32>() / episodes.len().max(1) as f32,
+            success_rate: stats.success_rate,
+            collision_rate: stats.collision_rate,
+            timeout_rate: stats.timeout_rate,
+            episodes: episodes.len(),
+            stage: st.stage,
+            stage_name: stages[st.stage].name.clone(),
+            update,
+            rollout_s: (t1 - t0).as_secs_f64(),
+            update_s: (t2 - t1).as_secs_f64(),
+            eval: eval_result,
+        };
+        writeln!(csv, "{}", csv_row(&report)).map_err(|e| io_err(&out.join("metrics.csv"), e))?;
+        st.learning_rate = ppo.learning_rate();
+        st.obs_norm = ppo.obs_norm.clone();
+        st.value_norm = ppo.value_norm.clone();
+        if let Some(r) = eval_result
+            && r.success_rate > st.best_success_rate
+        {
+            st.best_success_rate = r.success_rate;
+            st.best_epoch = st.epoch;
+            save_checkpoint(&out.join("best"), &ppo, &st)?;
+        }
+        progress(&report);
+
+        // Curriculum: move on after the stage's epoch budget, or once its success holds.
+        let rule = &stages[st.stage].advance;
+        let last = st.stage + 1 == stages.len();
+        let by_epochs = rule.max_epochs > 0 && st.stage_epochs >= rule.max_epochs;
+        let by_success = rule
+            .success_rate
+            .is_some_and(|thr| st.stage_epochs >= rule.min_epochs && window.rate().is_some_and(|r| r >= thr));
+        if !last && (by_epochs || by_success) {
+            st.stage += 1;
+            st.stage_epochs = 0;
+            window = Window { outcomes: VecDeque::new(), size: stages[st.stage].advance.window };
+            env = env_for(st.stage, st.epoch)?;
+            ppo.reset_state();
+        }
+        let checkpoint_now =
+            st.epoch % 10 == 0 || st.epoch == cfg.train.max_epochs || opts.stop.load(Ordering::Relaxed);
+        if checkpoint_now {
+            save_checkpoint(&out.join("checkpoint"), &ppo, &st)?;
+        }
+    }
+    save_checkpoint(&out.join("checkpoint"), &ppo, &st)?;
+    let summary = Summary {
+        name: cfg.name.clone(),
+        iterations: st.epoch,
+        env_steps: st.env_steps,
+        wall_s: st.wall_s,
+        steps_per_s: st.env_steps as f64 / st.wall_s.max(1e-9),
+        interrupted,
+        final_eval: if interrupted { None } else { last_eval },
+        eval_scenario: cfg.eval.scenario.clone(),
+        best_success_rate: st.best_success_rate.max(0.0),
+        best_epoch: st.best_epoch,
+    };
+    fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary).expect("summary serialises"))
+        .map_err(|e| io_err(out, e))?;
+    Ok(summary)
+}
