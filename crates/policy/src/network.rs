@@ -127,7 +127,8 @@ fn mlp(sizes: &[usize], device: &Device) -> Vec<Linear> {
 }
 
 impl ActorCritic {
-    /// A freshly initialised network for `obs_dim` inputs and `action_dim` actions.
+    /// A freshly initialised network for `obs_dim` inputs and `action_dim` actions (weights
+    /// from the backend's generator in whatever state it is: see [`Self::seeded`]).
     pub fn new(cfg: &NetworkConfig, obs_dim: usize, action_dim: usize, device: &Device) -> Self {
         let input = if cfg.is_recurrent() { cfg.lstm_units } else { obs_dim };
         let lstm = cfg.is_recurrent().then(|| LstmConfig::new(obs_dim, cfg.lstm_units, true).init(device));
@@ -151,6 +152,17 @@ impl ActorCritic {
             activation: cfg.activation,
             obs_dim,
         }
+    }
+
+    /// Like [`Self::new`], with the initial weights determined by `seed`. burn's initialisers
+    /// draw from the backend's (possibly process-global) generator, so seeding and building
+    /// happen under one lock: concurrent constructions (parallel tests, several runs in one
+    /// process) cannot interleave their draws.
+    pub fn seeded(cfg: &NetworkConfig, obs_dim: usize, action_dim: usize, device: &Device, seed: u64) -> Self {
+        static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _guard = INIT.lock().unwrap_or_else(|p| p.into_inner());
+        device.seed(seed);
+        Self::new(cfg, obs_dim, action_dim, device)
     }
 
     fn trunk(&self, layers: &[Linear], mut x: Tensor<2>) -> Tensor<2> {

@@ -114,9 +114,8 @@ impl Ppo {
         plain: Device,
         seed: u64,
     ) -> Self {
-        plain.seed(seed);
         let device = plain.clone().autodiff();
-        let model = ActorCritic::new(network, obs_dim, act_dim, &device);
+        let model = ActorCritic::seeded(network, obs_dim, act_dim, &device, seed);
         let units = model.lstm_units();
         Self {
             cfg: cfg.clone(),

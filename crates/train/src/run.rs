@@ -205,25 +205,27 @@ pub fn load_model(
     obs_dim: usize,
     device: &burn::prelude::Device,
 ) -> Result<ActorCritic, TrainError> {
-    let mut model = ActorCritic::new(&cfg.network, obs_dim, 2, device);
+    let mut model = ActorCritic::seeded(&cfg.network, obs_dim, 2, device, cfg.seed);
     let path = dir.join("model.bpk");
     let mut store = BurnpackStore::from_file(&path);
-    let result = model.load_from(&mut store).map_err(|e| TrainError::Resume {
+    let mismatch = |detail: String| TrainError::Resume {
         path: path.display().to_string(),
-        message: format!("not a readable network: {e}"),
-    })?;
+        message: format!(
+            "the checkpoint's network does not match the configured one (hidden {:?}, lstm {}): {detail}",
+            cfg.network.hidden, cfg.network.lstm_units
+        ),
+    };
+    if !path.is_file() {
+        return Err(TrainError::Resume { path: path.display().to_string(), message: "no such checkpoint file".into() });
+    }
+    let result = model.load_from(&mut store).map_err(|e| mismatch(e.to_string()))?;
     if !result.is_success() || !result.missing.is_empty() || !result.unused.is_empty() {
-        return Err(TrainError::Resume {
-            path: path.display().to_string(),
-            message: format!(
-                "the checkpoint's network does not match the configured one (hidden {:?}, lstm {}): {} errors, missing {:?}, unexpected {:?}",
-                cfg.network.hidden,
-                cfg.network.lstm_units,
-                result.errors.len(),
-                result.missing.iter().map(|m| &m.0).collect::<Vec<_>>(),
-                result.unused
-            ),
-        });
+        return Err(mismatch(format!(
+            "{} errors, missing {:?}, unexpected {:?}",
+            result.errors.len(),
+            result.missing.iter().map(|m| &m.0).collect::<Vec<_>>(),
+            result.unused
+        )));
     }
     Ok(model)
 }
