@@ -4,9 +4,11 @@
 pub mod config;
 pub mod eval;
 pub mod gae;
+pub mod plots;
 pub mod ppo;
 pub mod rollout;
 pub mod run;
+pub mod tensorboard;
 
 pub use config::{RunConfig, load_run_config};
 pub use run::{EpochReport, Summary, TrainError, TrainOptions, train};

@@ -356,6 +356,8 @@ pub fn train(
         fs::write(out.join("metrics.csv"), format!("{CSV_HEADER}\n")).map_err(|e| io_err(out, e))?;
     }
     let mut csv = fs::OpenOptions::new().append(true).open(out.join("metrics.csv")).map_err(|e| io_err(out, e))?;
+    let tb_dir = out.join("tensorboard");
+    let mut tb = crate::tensorboard::EventWriter::create(&tb_dir).map_err(|e| io_err(&tb_dir, e))?;
 
     let threads = cfg.train.threads;
     let env_for = |stage: usize, epoch: usize| {
@@ -424,6 +426,26 @@ pub fn train(
             eval: eval_result,
         };
         writeln!(csv, "{}", csv_row(&report)).map_err(|e| io_err(&out.join("metrics.csv"), e))?;
+        let step = st.env_steps as i64;
+        let mut scalars = vec![
+            ("rewards/mean_return", report.mean_return),
+            ("episodes/mean_length", report.mean_length),
+            ("episodes/success_rate", report.success_rate),
+            ("episodes/collision_rate", report.collision_rate),
+            ("episodes/timeout_rate", report.timeout_rate),
+            ("losses/policy", update.policy_loss),
+            ("losses/value", update.value_loss),
+            ("info/kl", update.kl),
+            ("info/learning_rate", update.learning_rate),
+            ("info/entropy", update.entropy),
+            ("info/clip_fraction", update.clip_fraction),
+            ("performance/steps_per_s", report.steps_per_s as f32),
+            ("curriculum/stage", st.stage as f32),
+        ];
+        if let Some(e) = &report.eval {
+            scalars.extend([("eval/success_rate", e.success_rate), ("eval/collision_rate", e.collision_rate)]);
+        }
+        tb.scalars(step, &scalars).map_err(|e| io_err(tb.path(), e))?;
         st.learning_rate = ppo.learning_rate();
         st.obs_norm = ppo.obs_norm.clone();
         st.value_norm = ppo.value_norm.clone();
@@ -469,6 +491,8 @@ pub fn train(
         best_success_rate: st.best_success_rate.max(0.0),
         best_epoch: st.best_epoch,
     };
+    crate::plots::training_svg(&out.join("metrics.csv"), &out.join("training.svg"))
+        .map_err(|e| TrainError::Io { path: out.join("training.svg").display().to_string(), message: e })?;
     fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary).expect("summary serialises"))
         .map_err(|e| io_err(out, e))?;
     Ok(summary)

@@ -87,6 +87,16 @@ fn stop_checkpoint_and_resume() {
     assert!(!s.interrupted && s.iterations == 6 && s.env_steps == 6 * 16 * 32);
     assert!(s.final_eval.is_some());
     assert_eq!(metrics(&out).len(), 7, "header + 6 epochs");
+    // TensorBoard: one event file per session, scalars for every epoch.
+    let mut steps = Vec::new();
+    for f in std::fs::read_dir(out.join("tensorboard")).unwrap() {
+        let events = rlnav_train::tensorboard::read_scalars(&f.unwrap().path()).unwrap();
+        steps.extend(events.iter().filter(|(_, t, _)| t == "episodes/success_rate").map(|(s, _, _)| *s));
+    }
+    steps.sort();
+    assert_eq!(steps, (1..=6).map(|e| e * 16 * 32).collect::<Vec<i64>>());
+    let svg = std::fs::read_to_string(out.join("training.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("success rate") && svg.contains("<polyline"), "training.svg drawn");
     std::fs::remove_dir_all(out).ok();
 }
 
