@@ -32,6 +32,7 @@ pub mod config;
 pub mod controller;
 pub mod geometry;
 pub mod lidar;
+pub mod movers;
 pub mod reachability;
 pub mod robot;
 pub mod scenario;

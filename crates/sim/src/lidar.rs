@@ -140,13 +140,30 @@ impl RayGeometry {
                 self.segments.push((*a, *b));
                 self.groups.push(SegmentGroup { center, radius, start, end: start + 1, one_sided: false });
             }
-            Primitive::Polygon { vertices } => {
-                let start = self.segments.len();
-                let n = vertices.len();
-                self.segments.extend((0..n).map(|i| (vertices[i], vertices[(i + 1) % n])));
-                self.groups.push(SegmentGroup { center, radius, start, end: start + n, one_sided: true });
-            }
+            Primitive::Polygon { vertices } => self.push_polygon(vertices),
         }
+    }
+
+    /// Empties the geometry, keeping its memory (for per-step moving obstacles).
+    pub fn clear(&mut self) {
+        self.circles.clear();
+        self.groups.clear();
+        self.segments.clear();
+    }
+
+    /// Adds a circle.
+    pub fn push_circle(&mut self, center: Vec2, radius: f32) {
+        self.circles.push((center, radius));
+    }
+
+    /// Adds a convex polygon given by its counter-clockwise vertices.
+    pub fn push_polygon(&mut self, vertices: &[Vec2]) {
+        let n = vertices.len();
+        let center = vertices.iter().copied().fold(Vec2::ZERO, |a, b| a + b) / n as f32;
+        let radius = vertices.iter().map(|v| (*v - center).length()).fold(0.0, f32::max);
+        let start = self.segments.len();
+        self.segments.extend((0..n).map(|i| (vertices[i], vertices[(i + 1) % n])));
+        self.groups.push(SegmentGroup { center, radius, start, end: start + n, one_sided: true });
     }
 
     /// Number of circles and segments (what the caster tests against).
@@ -220,16 +237,30 @@ impl Lidar {
     /// Casts all beams from the robot pose `robot` into `geometry`, writing exact ranges
     /// (no noise) into `out` (length `beams`). `dirs` is scratch space of the same length.
     pub fn scan(&self, robot: &Pose2, geometry: &RayGeometry, dirs: &mut [Vec2], out: &mut [f32]) {
+        self.scan_layers(robot, &[geometry], dirs, out);
+    }
+
+    /// Like [`Self::scan`], over several geometries at once (the static world and the moving
+    /// obstacles of this instant).
+    pub fn scan_layers(&self, robot: &Pose2, layers: &[&RayGeometry], dirs: &mut [Vec2], out: &mut [f32]) {
         let n = self.spec.beams;
         debug_assert!(dirs.len() == n && out.len() == n);
         let sensor = self.sensor_pose(robot);
-        let p = sensor.position();
         let (sy, cy) = sensor.yaw.sin_cos();
         for (d, l) in dirs.iter_mut().zip(&self.local_dirs) {
             *d = Vec2::new(cy * l.x - sy * l.y, sy * l.x + cy * l.y);
         }
+        out.fill(self.spec.range_max);
+        for g in layers {
+            self.cast(&sensor, g, dirs, out);
+        }
+        self.finish(out);
+    }
+
+    /// Lowers `out` (raw distances, `range_max` = no hit yet) to the hits in `geometry`.
+    fn cast(&self, sensor: &Pose2, geometry: &RayGeometry, dirs: &[Vec2], out: &mut [f32]) {
+        let p = sensor.position();
         let limit = self.spec.range_max;
-        out.fill(limit);
         // Angles below are relative to beam 0's world direction.
         let base = sensor.yaw + self.spec.angle_min;
 
@@ -294,7 +325,6 @@ impl Lidar {
                 });
             }
         }
-        self.finish(out);
     }
 
     /// Brute force: every beam against every obstacle with parry2d's ray casts. The reference

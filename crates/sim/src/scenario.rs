@@ -4,6 +4,7 @@
 
 use crate::config::{ConfigError, Invalid, Validate, check_interval, check_range, preset_or_file};
 use crate::geometry::{Obstacle, ObstacleSpec, Pose2, Rect, Vec2};
+use crate::movers::{Mover, MoverShape, MoverSpec, PathMode};
 use crate::reachability::ReachabilityGrid;
 use crate::world::World;
 use rand::RngExt;
@@ -16,6 +17,8 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("empty-room", include_str!("../../../scenarios/empty-room.yaml")),
     ("static-room", include_str!("../../../scenarios/static-room.yaml")),
     ("random-static", include_str!("../../../scenarios/random-static.yaml")),
+    ("dynamic-room", include_str!("../../../scenarios/dynamic-room.yaml")),
+    ("random-dynamic", include_str!("../../../scenarios/random-dynamic.yaml")),
 ];
 
 /// A walled rectangular arena.
@@ -97,6 +100,29 @@ pub struct GeneratorSpec {
     /// Smallest gap between two obstacles' bounding circles and between an obstacle and the
     /// arena walls (m, default 0.8), so that the robot can pass between any two.
     pub min_clearance: f32,
+    /// Moving boxes drawn for every episode, each going back and forth across the straight
+    /// line from start to goal (the article's dynamic task). None by default.
+    pub movers: Option<MoverGenSpec>,
+}
+
+/// Moving obstacles the generator draws for every episode.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MoverGenSpec {
+    /// Number `[min, max]` (default [1, 2]).
+    pub count: [u32; 2],
+    /// Speed range (m/s, default the article's [0.1, 0.3]).
+    pub speed: [f32; 2],
+    /// Box side range (m, default [0.3, 0.5]).
+    pub size: [f32; 2],
+    /// Length of the back-and-forth path (m, default [2, 4]), centred on the start–goal line.
+    pub travel: [f32; 2],
+}
+
+impl Default for MoverGenSpec {
+    fn default() -> Self {
+        Self { count: [1, 2], speed: [0.1, 0.3], size: [0.3, 0.5], travel: [2.0, 4.0] }
+    }
 }
 
 impl Default for GeneratorSpec {
@@ -106,6 +132,7 @@ impl Default for GeneratorSpec {
             size: [0.1, 0.5],
             shapes: vec![ShapeKind::Circle, ShapeKind::Box, ShapeKind::Polygon],
             min_clearance: 0.8,
+            movers: None,
         }
     }
 }
@@ -144,10 +171,9 @@ pub struct ScenarioSpec {
     /// (m, default 0.1).
     #[serde(default = "default_margin")]
     pub margin: f32,
-    /// Moving obstacles and people. Reserved: this build simulates static scenes only, and
-    /// rejects a non-empty list rather than silently ignoring it.
+    /// Moving obstacles.
     #[serde(default)]
-    pub movers: Vec<serde_norway::Value>,
+    pub movers: Vec<MoverSpec>,
 }
 
 fn default_robot() -> String {
@@ -209,11 +235,16 @@ impl Validate for ScenarioSpec {
         }
         check_interval("start_goal_distance", self.start_goal_distance, 0.0, 10_000.0)?;
         check_range("margin", self.margin, 0.0, 10.0)?;
-        if !self.movers.is_empty() {
-            return Err(Invalid::new(
-                "movers",
-                "an empty list: moving obstacles and people are not simulated by this build yet",
-            ));
+        for (i, m) in self.movers.iter().enumerate() {
+            m.validate().map_err(|e| e.under(&format!("movers[{i}]")))?;
+        }
+        if let Some(m) = self.procedural.as_ref().and_then(|g| g.movers.as_ref()) {
+            if m.count[0] > m.count[1] || m.count[1] > 100 {
+                return Err(Invalid::new("procedural.movers.count", "[min, max] with min <= max <= 100"));
+            }
+            check_interval("procedural.movers.speed", m.speed, 0.0, 20.0)?;
+            check_interval("procedural.movers.size", m.size, 0.01, 10.0)?;
+            check_interval("procedural.movers.travel", m.travel, 0.0, 1000.0)?;
         }
         Ok(())
     }
@@ -235,6 +266,8 @@ pub struct EpisodeSetup {
     pub start: Pose2,
     /// Goal position.
     pub goal: Vec2,
+    /// Moving obstacles, placed at time 0.
+    pub movers: Vec<Mover>,
 }
 
 /// Why no episode could be drawn.
@@ -341,7 +374,10 @@ impl Scenario {
                 }
             };
             match self.place(&world, &grid, rng) {
-                Ok((start, goal)) => return Ok(EpisodeSetup { world, start, goal }),
+                Ok((start, goal)) => {
+                    let movers = self.draw_movers(start.position(), goal, rng);
+                    return Ok(EpisodeSetup { world, start, goal, movers });
+                }
                 Err(r) => reason = r,
             }
             if self.fixed_world.is_some() {
@@ -349,6 +385,37 @@ impl Scenario {
             }
         }
         Err(NoEpisode { scenario: self.spec.name.clone(), reason })
+    }
+
+    /// The scenario's movers plus generated ones crossing the start–goal line.
+    fn draw_movers<R: rand::Rng>(&self, start: Vec2, goal: Vec2, rng: &mut R) -> Vec<Mover> {
+        let mut movers: Vec<Mover> = self.spec.movers.iter().map(|m| m.instantiate(rng)).collect();
+        if let Some(g) = self.spec.procedural.as_ref().and_then(|p| p.movers.as_ref()) {
+            let line = goal - start;
+            let normal = Vec2::new(-line.y, line.x).normalize_or_zero();
+            for _ in 0..rng.random_range(g.count[0]..=g.count[1]) {
+                let centre = start + line * rng.random_range(0.3..=0.7f32);
+                let half = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
+                let clamp = |p: Vec2| {
+                    let a = self.area;
+                    Vec2::new(p.x.clamp(a.min.x + 0.3, a.max.x - 0.3), p.y.clamp(a.min.y + 0.3, a.max.y - 0.3))
+                };
+                let (a, b) = (clamp(centre - normal * half), clamp(centre + normal * half));
+                if (a - b).length() < 1e-3 {
+                    continue;
+                }
+                let side = rng.random_range(g.size[0]..=g.size[1]);
+                let spec = MoverSpec {
+                    shape: MoverShape::Box { size: [side, side] },
+                    waypoints: vec![a.into(), b.into()],
+                    speed: g.speed,
+                    mode: PathMode::BackAndForth,
+                    random_phase: true,
+                };
+                movers.push(spec.instantiate(rng));
+            }
+        }
+        movers
     }
 
     fn place<R: rand::Rng>(

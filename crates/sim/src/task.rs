@@ -4,7 +4,8 @@
 use crate::config::{ConfigError, Invalid, Validate, check_interval, check_positive, check_range, from_yaml_file};
 use crate::controller::{Controller, LaserScan, RobotObservation, Twist};
 use crate::geometry::{Pose2, Vec2, wrap_angle};
-use crate::lidar::{Lidar, min_pool};
+use crate::lidar::{Lidar, RayGeometry, min_pool};
+use crate::movers::Mover;
 use crate::robot::{DiffDrive, DriveParams, Footprint, RobotSpec};
 use crate::scenario::{NoEpisode, Scenario, ScenarioSpec};
 use crate::world::World;
@@ -397,6 +398,9 @@ pub struct NavEnv {
     path_length: f32,
     initial_distance: f32,
     last_episode: Option<EpisodeStats>,
+    movers: Vec<Mover>,
+    mover_rays: RayGeometry,
+    time: f32,
 }
 
 impl NavEnv {
@@ -429,6 +433,9 @@ impl NavEnv {
             path_length: 0.0,
             initial_distance: 0.0,
             last_episode: None,
+            movers: Vec::new(),
+            mover_rays: RayGeometry::default(),
+            time: 0.0,
             setup,
         };
         env.reset()?;
@@ -437,7 +444,17 @@ impl NavEnv {
 
     /// Starts a new episode: draws a world, start and goal, and takes the first scan.
     pub fn reset(&mut self) -> Result<(), SimError> {
-        let ep = self.setup.scenario.sample(&mut self.rng)?;
+        // A moving obstacle may start on top of the robot; draw again (rarely needed).
+        let mut ep = self.setup.scenario.sample(&mut self.rng)?;
+        let room = self.setup.scenario.start_clearance();
+        for _ in 0..20 {
+            if ep.movers.iter().all(|m| m.signed_distance(ep.start.position()) >= room) {
+                break;
+            }
+            ep = self.setup.scenario.sample(&mut self.rng)?;
+        }
+        self.movers = ep.movers;
+        self.time = 0.0;
         self.world = ep.world;
         self.drive = DiffDrive::new(DriveParams::from(&self.setup.robot), ep.start);
         self.goal = ep.goal;
@@ -455,7 +472,16 @@ impl NavEnv {
 
     fn scan(&mut self) {
         let s = &self.setup;
-        s.lidar.scan(&self.drive.pose, self.world.ray_geometry(), &mut self.dirs, &mut self.ranges);
+        if self.movers.is_empty() {
+            s.lidar.scan(&self.drive.pose, self.world.ray_geometry(), &mut self.dirs, &mut self.ranges);
+        } else {
+            self.mover_rays.clear();
+            for m in &self.movers {
+                m.push_to(&mut self.mover_rays);
+            }
+            let layers = [self.world.ray_geometry(), &self.mover_rays];
+            s.lidar.scan_layers(&self.drive.pose, &layers, &mut self.dirs, &mut self.ranges);
+        }
         s.lidar.apply_noise(&mut self.rng, &mut self.ranges);
     }
 
@@ -482,8 +508,15 @@ impl NavEnv {
         for _ in 0..setup.substeps {
             let before = self.drive.pose.position();
             self.drive.step(cmd, task.physics_dt);
+            self.time += task.physics_dt;
+            for m in &mut self.movers {
+                m.set_time(self.time);
+            }
             self.path_length += (self.drive.pose.position() - before).length();
-            if setup.footprint.radius() > 0.0 && self.world.footprint_collides(&setup.footprint, &self.drive.pose) {
+            let fp = &setup.footprint;
+            if self.world.footprint_collides(fp, &self.drive.pose)
+                || self.movers.iter().any(|m| m.touches(fp, &self.drive.pose))
+            {
                 contact = true;
                 break;
             }
@@ -600,6 +633,11 @@ impl NavEnv {
     /// The goal.
     pub fn goal(&self) -> Vec2 {
         self.goal
+    }
+
+    /// The moving obstacles, where they are now.
+    pub fn movers(&self) -> &[Mover] {
+        &self.movers
     }
 
     /// The current world.

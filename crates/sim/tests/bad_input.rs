@@ -63,8 +63,18 @@ fn scenario_files() {
     assert!(e.contains("start_goal_distance") && e.contains("low <= high"), "{e}");
     let e = scenario_err("name: s\narena: {size: [8, 8]}\nstart: {region: {min: [1, 1], max: [0, 2]}}\n");
     assert!(e.contains("start.region"), "{e}");
-    let e = scenario_err("name: s\narena: {size: [8, 8]}\nmovers:\n  - box: {}\n");
-    assert!(e.contains("movers") && e.contains("not simulated"), "{e}");
+    let e = scenario_err(
+        "name: s\narena: {size: [8, 8]}\nmovers:\n  - {shape: {box: {size: [0.4, 0.4]}}, waypoints: [[0, 0]], speed: [0.1, 0.2]}\n",
+    );
+    assert!(e.contains("movers[0].waypoints") && e.contains("at least two"), "{e}");
+    let e = scenario_err(
+        "name: s\narena: {size: [8, 8]}\nmovers:\n  - {shape: {circle: {radius: 0.2}}, waypoints: [[0, 0], [1, 0]], speed: [0.3, 0.1]}\n",
+    );
+    assert!(e.contains("movers[0].speed"), "{e}");
+    let e = scenario_err(
+        "name: s\narena: {size: [8, 8]}\nmovers:\n  - {shape: {blob: {}}, waypoints: [[0, 0], [1, 0]], speed: [0.1, 0.1]}\n",
+    );
+    assert!(e.contains("movers[0].shape") || e.contains("blob"), "{e}");
     let e = scenario_err("name: s\narena: {size: [8, 8]}\nrobbot: jetbot\n");
     assert!(e.contains("unknown field `robbot`"), "{e}");
     // Unknown presets list the known ones.

@@ -101,3 +101,30 @@ fn every_robot_runs_in_every_scenario() {
         }
     }
 }
+
+#[test]
+fn moving_obstacles_are_seen_and_hit() {
+    use rlnav_sim::RobotSpec;
+    use rlnav_sim::scenario::ScenarioSpec;
+    use rlnav_sim::task::{NavEnv, TaskConfig};
+    // A wide box sweeping down the corridor straight at a robot that stands still-ish.
+    let yaml = "name: sweep\narena: {size: [6, 2]}\nmovers:\n  - {shape: {box: {size: [0.3, 1.6]}}, waypoints: [[1.2, 0], [-2.5, 0]], speed: [0.5, 0.5], random_phase: false}\nstart: {poses: [[-1.5, 0, 3.14159]]}\ngoal: {points: [[-2.5, 0.5]]}\nstart_goal_distance: [0.5, 5]\n";
+    let spec: ScenarioSpec = rlnav_sim::config::from_yaml_str("sweep.yaml", yaml).unwrap();
+    let setup = Arc::new(EnvSetup::new(spec, RobotSpec::load("jetbot").unwrap(), TaskConfig::default()).unwrap());
+    let mut env = NavEnv::new(setup, 0).unwrap();
+    // The robot faces -x (away); beam 0 looks backwards (+x), where the box comes from.
+    let first = env.ranges()[0];
+    assert!((first - (2.7 - 0.15)).abs() < 1e-3, "box seen 2.55 m behind: {first}");
+    let mut last = first;
+    let mut outcome = None;
+    for _ in 0..100 {
+        let out = env.step([-1.0, 0.0]);
+        if out.terminated || out.truncated {
+            outcome = env.last_episode().map(|e| e.outcome);
+            break;
+        }
+        assert!(env.ranges()[0] < last, "closing in");
+        last = env.ranges()[0];
+    }
+    assert_eq!(outcome, Some(Outcome::Collision), "the box runs the slow robot down");
+}

@@ -1,0 +1,264 @@
+//! Moving obstacles: boxes and cylinders that travel along waypoints at a set speed, back and
+//! forth or in a loop (the article's dynamic scene: boxes moving across the room at
+//! 0.1–0.3 m/s). The lidar sees them and touching one is a collision.
+
+use crate::config::{Invalid, check_interval, check_positive};
+use crate::geometry::{Pose2, Vec2, point_segment_distance};
+use crate::lidar::RayGeometry;
+use crate::robot::Footprint;
+use parry2d::query::intersection_test;
+use parry2d::shape::{Ball, Cuboid, SharedShape};
+use rand::RngExt;
+use serde::{Deserialize, Serialize};
+
+/// A moving obstacle's outline.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum MoverShape {
+    /// A cylinder.
+    Circle {
+        /// Radius (m).
+        radius: f32,
+    },
+    /// A box that keeps its heading along the path's current segment.
+    Box {
+        /// `[length, width]` (m); length along the direction of travel.
+        size: [f32; 2],
+    },
+}
+
+impl MoverShape {
+    /// Radius of the smallest circle around the shape.
+    pub fn bound_radius(&self) -> f32 {
+        match self {
+            MoverShape::Circle { radius } => *radius,
+            MoverShape::Box { size } => 0.5 * size[0].hypot(size[1]),
+        }
+    }
+
+    fn validate(&self) -> Result<(), Invalid> {
+        match self {
+            MoverShape::Circle { radius } => check_positive("shape.circle.radius", *radius),
+            MoverShape::Box { size } => {
+                check_positive("shape.box.size[0]", size[0])?;
+                check_positive("shape.box.size[1]", size[1])
+            }
+        }
+    }
+}
+
+/// How a mover runs along its waypoints.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PathMode {
+    /// First to last waypoint and back again.
+    #[default]
+    BackAndForth,
+    /// Around the closed polygon of waypoints.
+    Loop,
+}
+
+/// A moving obstacle in a scenario file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MoverSpec {
+    /// Outline.
+    pub shape: MoverShape,
+    /// Waypoints `[[x, y], ...]`, at least two.
+    pub waypoints: Vec<[f32; 2]>,
+    /// Speed range `[min, max]` (m/s), drawn per episode (equal bounds for a fixed speed).
+    pub speed: [f32; 2],
+    /// Back and forth (default) or loop.
+    #[serde(default)]
+    pub mode: PathMode,
+    /// Start each episode at a random point of the path (default true); otherwise at the first
+    /// waypoint.
+    #[serde(default = "yes")]
+    pub random_phase: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl MoverSpec {
+    /// Checks the values.
+    pub fn validate(&self) -> Result<(), Invalid> {
+        self.shape.validate()?;
+        if self.waypoints.len() < 2 || !self.waypoints.iter().flatten().all(|v| v.is_finite()) {
+            return Err(Invalid::new("waypoints", "at least two finite [x, y] points"));
+        }
+        if self.waypoints.windows(2).all(|w| w[0] == w[1]) {
+            return Err(Invalid::new("waypoints", "points that are not all the same"));
+        }
+        check_interval("speed", self.speed, 0.0, 20.0)
+    }
+
+    /// Draws this episode's mover.
+    pub fn instantiate<R: rand::Rng>(&self, rng: &mut R) -> Mover {
+        let speed =
+            if self.speed[1] > self.speed[0] { rng.random_range(self.speed[0]..=self.speed[1]) } else { self.speed[0] };
+        let mut points: Vec<Vec2> = self.waypoints.iter().map(|p| Vec2::new(p[0], p[1])).collect();
+        if self.mode == PathMode::Loop {
+            points.push(points[0]);
+        }
+        let length: f32 = points.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+        let cycle = if self.mode == PathMode::Loop { length } else { 2.0 * length };
+        let phase = if self.random_phase { rng.random_range(0.0..cycle.max(1e-6)) } else { 0.0 };
+        Mover { shape: self.shape.clone(), points, length, mode: self.mode, speed, phase, pose: Pose2::default() }
+            .at_time(0.0)
+    }
+}
+
+/// One episode's moving obstacle.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mover {
+    /// Outline.
+    pub shape: MoverShape,
+    points: Vec<Vec2>,
+    length: f32,
+    mode: PathMode,
+    /// Speed this episode (m/s).
+    pub speed: f32,
+    phase: f32,
+    /// Current pose (yaw along the direction of travel).
+    pub pose: Pose2,
+}
+
+impl Mover {
+    /// The mover placed where it is `t` seconds into the episode.
+    pub fn at_time(mut self, t: f32) -> Self {
+        self.set_time(t);
+        self
+    }
+
+    /// Moves the mover to where it is `t` seconds into the episode.
+    pub fn set_time(&mut self, t: f32) {
+        let mut s = self.phase + self.speed * t;
+        let mut backwards = false;
+        if self.length <= 0.0 {
+            s = 0.0;
+        } else if self.mode == PathMode::Loop {
+            s = s.rem_euclid(self.length);
+        } else {
+            s = s.rem_euclid(2.0 * self.length);
+            if s > self.length {
+                s = 2.0 * self.length - s;
+                backwards = true;
+            }
+        }
+        let last = self.points.len() - 2;
+        for (i, w) in self.points.windows(2).enumerate() {
+            let seg = w[1] - w[0];
+            let l = seg.length();
+            if s <= l || i == last {
+                let p = w[0] + seg * (s / l.max(1e-9)).min(1.0);
+                let dir = if backwards { -seg } else { seg };
+                self.pose = Pose2::new(p.x, p.y, dir.y.atan2(dir.x));
+                return;
+            }
+            s -= l;
+        }
+    }
+
+    /// Box corners (counter-clockwise) or `None` for a circle.
+    fn corners(&self) -> Option<[Vec2; 4]> {
+        match self.shape {
+            MoverShape::Circle { .. } => None,
+            MoverShape::Box { size } => {
+                let (hx, hy) = (size[0] / 2.0, size[1] / 2.0);
+                Some([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]].map(|c| self.pose.to_parent(Vec2::new(c[0], c[1]))))
+            }
+        }
+    }
+
+    /// Adds the mover's current outline to a ray geometry.
+    pub fn push_to(&self, g: &mut RayGeometry) {
+        match (&self.shape, self.corners()) {
+            (MoverShape::Circle { radius }, _) => g.push_circle(self.pose.position(), *radius),
+            (_, Some(c)) => g.push_polygon(&c),
+            _ => {}
+        }
+    }
+
+    /// Distance from `p` to the mover's surface (negative inside).
+    pub fn signed_distance(&self, p: Vec2) -> f32 {
+        match (&self.shape, self.corners()) {
+            (MoverShape::Circle { radius }, _) => (p - self.pose.position()).length() - radius,
+            (_, Some(c)) => {
+                let d = (0..4).map(|i| point_segment_distance(p, c[i], c[(i + 1) % 4])).fold(f32::INFINITY, f32::min);
+                let inside = (0..4).all(|i| (c[(i + 1) % 4] - c[i]).perp_dot(p - c[i]) >= 0.0);
+                if inside { -d } else { d }
+            }
+            _ => f32::INFINITY,
+        }
+    }
+
+    /// Whether the robot's footprint at `pose` touches the mover.
+    pub fn touches(&self, footprint: &Footprint, pose: &Pose2) -> bool {
+        let reach = footprint.radius() + self.shape.bound_radius();
+        if (self.pose.position() - pose.position()).length_squared() > reach * reach {
+            return false;
+        }
+        let d = self.signed_distance(pose.position());
+        if d > footprint.radius() {
+            return false;
+        }
+        if footprint.is_disc() {
+            return true;
+        }
+        let shape = match &self.shape {
+            MoverShape::Circle { radius } => SharedShape::new(Ball::new(*radius)),
+            MoverShape::Box { size } => SharedShape::new(Cuboid::new(Vec2::new(size[0] / 2.0, size[1] / 2.0))),
+        };
+        intersection_test(&pose.to_parry(), footprint.shape(), &self.pose.to_parry(), shape.as_ref())
+            .map_or(true, |hit| hit.intersecting)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn back_and_forth_at_speed() {
+        let spec = MoverSpec {
+            shape: MoverShape::Box { size: [0.4, 0.2] },
+            waypoints: vec![[0.0, 0.0], [2.0, 0.0]],
+            speed: [0.5, 0.5],
+            mode: PathMode::BackAndForth,
+            random_phase: false,
+        };
+        let mut m = spec.instantiate(&mut rand_pcg::Pcg64Mcg::seed_from_u64(0));
+        m.set_time(2.0);
+        assert!((m.pose.x - 1.0).abs() < 1e-6 && m.pose.yaw == 0.0);
+        m.set_time(6.0); // 3 m travelled: 1 m back from the far end, heading -x
+        assert!((m.pose.x - 1.0).abs() < 1e-5 && (m.pose.yaw.abs() - std::f32::consts::PI).abs() < 1e-5);
+        m.set_time(8.0);
+        assert!(m.pose.x.abs() < 1e-5);
+        // The box is seen and touched where it is.
+        assert!((m.signed_distance(Vec2::new(0.0, 0.5)) - 0.4).abs() < 1e-5);
+        let fp = Footprint::new(&crate::robot::FootprintSpec::Circle { radius: 0.1 }).unwrap();
+        assert!(m.touches(&fp, &Pose2::new(0.0, 0.19, 0.0)) && !m.touches(&fp, &Pose2::new(0.0, 0.21, 0.0)));
+    }
+
+    #[test]
+    fn loop_and_random_speed() {
+        let spec = MoverSpec {
+            shape: MoverShape::Circle { radius: 0.2 },
+            waypoints: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            speed: [0.1, 0.3],
+            mode: PathMode::Loop,
+            random_phase: false,
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(1);
+        let speeds: Vec<f32> = (0..200).map(|_| spec.instantiate(&mut rng).speed).collect();
+        assert!(speeds.iter().all(|s| (0.1..=0.3).contains(s)));
+        let mean = speeds.iter().sum::<f32>() / 200.0;
+        assert!((mean - 0.2).abs() < 0.02);
+        let mut m = spec.instantiate(&mut rng);
+        m.set_time(3.5 / m.speed); // 3.5 m around a 4 m loop: on the last side, heading -y
+        assert!((m.pose.x).abs() < 1e-4 && (m.pose.y - 0.5).abs() < 1e-4, "{:?}", m.pose);
+    }
+}
