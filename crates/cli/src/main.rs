@@ -73,6 +73,25 @@ enum Command {
         #[arg(long, conflicts_with_all = ["config", "out", "seed"])]
         resume: Option<PathBuf>,
     },
+    /// Evaluate a trained run on a scenario (default: its evaluation scenario) and write
+    /// eval.json.
+    Eval {
+        /// Run folder written by `rlnav train`.
+        #[arg(long)]
+        run: PathBuf,
+        /// Scenario: a shipped name or a YAML file.
+        #[arg(long)]
+        scenario: Option<String>,
+        /// Episodes.
+        #[arg(long, default_value_t = 200)]
+        episodes: usize,
+        /// Seed of the evaluation episodes.
+        #[arg(long, default_value_t = 12345)]
+        seed: u64,
+        /// Folder for eval.json (default: the run folder).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// List the shipped scenarios and robots.
     List,
 }
@@ -116,6 +135,27 @@ fn run(cli: Cli) -> Result<()> {
             sim_speed(&env, envs, threads, steps, seed, reference_lidar)
         }
         Command::Train { config, out, seed, set, resume } => train(config, out, seed, set, resume),
+        Command::Eval { run, scenario, episodes, seed, out } => {
+            anyhow::ensure!(episodes > 0, "--episodes must be at least 1");
+            let (r, eps) = rlnav_train::run::evaluate_run(&run, scenario.as_deref(), episodes, 50, seed)?;
+            let cfg = rlnav_train::run::read_run_config(&run)?;
+            let scenario = scenario.unwrap_or(cfg.eval.scenario);
+            println!("{} on {} ({} episodes, seed {seed})", run.display(), scenario, r.episodes);
+            println!(
+                "success {:.1}% | collision {:.1}% | timeout {:.1}% | mean return {:.1} | mean time to goal {:.1} s",
+                100.0 * r.success_rate,
+                100.0 * r.collision_rate,
+                100.0 * r.timeout_rate,
+                r.mean_return,
+                r.mean_success_time
+            );
+            let path = out.unwrap_or(run).join("eval.json");
+            let json = serde_json::json!({"scenario": scenario, "seed": seed, "summary": r, "episodes": eps});
+            std::fs::write(&path, serde_json::to_string_pretty(&json)?)
+                .with_context(|| format!("writing {}", path.display()))?;
+            println!("wrote {}", path.display());
+            Ok(())
+        }
         Command::List => {
             println!("scenarios:");
             for (name, _) in SCENARIO_PRESETS {

@@ -3,7 +3,7 @@
 //! `fixed_sigma`), and a value head; the critic has its own MLP or shares the actor's. The
 //! recurrent variant puts an LSTM between the input and the MLPs (rl_games' `before_mlp`).
 
-use burn::module::{Initializer, Param};
+use burn::module::{Initializer, ModuleVisitor, Param};
 use burn::nn::{Linear, LinearConfig, Lstm, LstmConfig, LstmState};
 use burn::prelude::*;
 use burn::tensor::activation;
@@ -159,10 +159,20 @@ impl ActorCritic {
     /// happen under one lock: concurrent constructions (parallel tests, several runs in one
     /// process) cannot interleave their draws.
     pub fn seeded(cfg: &NetworkConfig, obs_dim: usize, action_dim: usize, device: &Device, seed: u64) -> Self {
+        /// Touches every parameter: burn initialises parameters lazily, on first use, and
+        /// the draws must happen here, under the lock.
+        struct Materialise;
+        impl ModuleVisitor for Materialise {
+            fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+                let _ = param.val();
+            }
+        }
         static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
         let _guard = INIT.lock().unwrap_or_else(|p| p.into_inner());
         device.seed(seed);
-        Self::new(cfg, obs_dim, action_dim, device)
+        let net = Self::new(cfg, obs_dim, action_dim, device);
+        net.visit(&mut Materialise);
+        net
     }
 
     fn trunk(&self, layers: &[Linear], mut x: Tensor<2>) -> Tensor<2> {

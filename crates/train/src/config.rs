@@ -11,6 +11,7 @@ use serde_norway::Value;
 /// Training configurations shipped in `configs/`, embedded: `(name, yaml)`.
 pub const TRAIN_PRESETS: &[(&str, &str)] = &[
     ("static-mlp", include_str!("../../../configs/static-mlp.yaml")),
+    ("dynamic-lstm", include_str!("../../../configs/dynamic-lstm.yaml")),
     ("smoke", include_str!("../../../configs/smoke.yaml")),
 ];
 

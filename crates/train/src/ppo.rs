@@ -45,6 +45,8 @@ pub struct UpdateStats {
 
 /// The learner: network, optimiser, normalisers, rollout storage.
 pub struct Ppo {
+    /// Seconds the last [`Ppo::collect`] spent stepping the simulator.
+    pub sim_s: f64,
     cfg: PpoConfig,
     /// Device gradients are tracked on.
     device: Device,
@@ -118,6 +120,7 @@ impl Ppo {
         let model = ActorCritic::seeded(network, obs_dim, act_dim, &device, seed);
         let units = model.lstm_units();
         Self {
+            sim_s: 0.0,
             cfg: cfg.clone(),
             optim: AdamConfig::new().with_epsilon(1e-8).init(),
             model: Some(model),
@@ -216,6 +219,7 @@ impl Ppo {
         let std: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
         let mut actions = vec![[0.0f32; 2]; n];
         let units = net.lstm_units();
+        self.sim_s = 0.0;
         for t in 0..self.buffer.horizon {
             let obs = self.normalized(&env.obs, true);
             if units > 0 && t % self.cfg.seq_len == 0 {
@@ -244,7 +248,9 @@ impl Ppo {
                 self.buffer.log_probs[i] = logp;
                 self.buffer.values[i] = values[e];
             }
+            let t_sim = std::time::Instant::now();
             env.step(&actions)?;
+            self.sim_s += t_sim.elapsed().as_secs_f64();
             // Time-outs are not failures of the policy: bootstrap them with γ·V(final obs).
             let truncated: Vec<usize> = (0..n).filter(|e| env.truncated[*e]).collect();
             let mut bootstrap = vec![0.0; n];

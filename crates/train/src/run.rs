@@ -84,8 +84,10 @@ pub struct EpochReport {
     /// The update's statistics.
     #[serde(skip)]
     pub update: UpdateStats,
-    /// Seconds spent collecting experience this epoch.
+    /// Seconds spent collecting experience this epoch (simulation and inference).
     pub rollout_s: f64,
+    /// Of which stepping the simulator.
+    pub sim_s: f64,
     /// Seconds spent updating the network this epoch.
     pub update_s: f64,
     /// Evaluation, when one ran after this epoch.
@@ -249,7 +251,7 @@ impl Window {
     }
 }
 
-const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate";
+const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate,sim_s,rollout_s,update_s";
 
 fn csv_row(r: &EpochReport) -> String {
     let u = &r.update;
@@ -258,7 +260,7 @@ fn csv_row(r: &EpochReport) -> String {
         None => (String::new(), String::new(), String::new()),
     };
     format!(
-        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et}",
+        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et},{:.4},{:.4},{:.4}",
         r.epoch,
         r.env_steps,
         r.wall_s,
@@ -275,7 +277,10 @@ fn csv_row(r: &EpochReport) -> String {
         u.learning_rate,
         u.entropy,
         u.clip_fraction,
-        r.stage
+        r.stage,
+        r.sim_s,
+        r.rollout_s,
+        r.update_s
     )
 }
 
@@ -422,6 +427,7 @@ pub fn train(
             stage_name: stages[st.stage].name.clone(),
             update,
             rollout_s: (t1 - t0).as_secs_f64(),
+            sim_s: ppo.sim_s,
             update_s: (t2 - t1).as_secs_f64(),
             eval: eval_result,
         };
@@ -496,4 +502,39 @@ pub fn train(
     fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary).expect("summary serialises"))
         .map_err(|e| io_err(out, e))?;
     Ok(summary)
+}
+
+/// Loads the network and normalisation of a run folder's checkpoint (`best` or
+/// `checkpoint`) into a learner ready for [`evaluate`].
+pub fn load_learner(dir: &Path, which: &str) -> Result<(RunConfig, Ppo), TrainError> {
+    let cfg = read_run_config(dir)?;
+    let ck = dir.join(which);
+    let text = fs::read_to_string(ck.join("state.json")).map_err(|e| io_err(&ck.join("state.json"), e))?;
+    let st: TrainerState = serde_json::from_str(&text)
+        .map_err(|e| TrainError::Resume { path: ck.display().to_string(), message: e.to_string() })?;
+    let obs_dim = st.obs_norm.dim();
+    let plain = training_device();
+    let mut ppo = Ppo::new(&cfg.train, &cfg.network, obs_dim, 2, plain.clone(), cfg.seed);
+    let model = load_model(&cfg, &ck, obs_dim, &plain.autodiff())?;
+    ppo.restore(model, AdamConfig::new().init(), st.learning_rate);
+    ppo.obs_norm = st.obs_norm;
+    ppo.value_norm = st.value_norm;
+    Ok((cfg, ppo))
+}
+
+/// Evaluates a run's final checkpoint on `scenario` (default: the run's evaluation scenario)
+/// with the run's robot and task: `episodes` episodes, `envs` at a time.
+pub fn evaluate_run(
+    dir: &Path,
+    scenario: Option<&str>,
+    episodes: usize,
+    envs: usize,
+    seed: u64,
+) -> Result<(EvalResult, Vec<EpisodeStats>), TrainError> {
+    let (cfg, ppo) = load_learner(dir, "checkpoint")?;
+    let scenario = scenario.unwrap_or(&cfg.eval.scenario);
+    let setup = EnvSetup::new(ScenarioSpec::load(scenario)?, RobotSpec::load(&cfg.robot)?, cfg.task.clone())?;
+    let envs = envs.clamp(1, episodes.max(1));
+    let episodes = episodes / envs * envs;
+    Ok(evaluate(&ppo, Arc::new(setup), episodes, envs, seed, cfg.train.threads)?)
 }

@@ -23,11 +23,12 @@ fn opts(out: &Path, resume: bool) -> TrainOptions {
 
 /// metrics.csv without the wall-clock columns.
 fn metrics(dir: &Path) -> Vec<String> {
-    std::fs::read_to_string(dir.join("metrics.csv"))
-        .unwrap()
-        .lines()
+    let text = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let timing = ["wall_s", "steps_per_s", "sim_s", "rollout_s", "update_s"];
+    text.lines()
         .map(|l| {
-            l.split(',').enumerate().filter(|(i, _)| *i != 2 && *i != 3).map(|(_, v)| v).collect::<Vec<_>>().join(",")
+            l.split(',').zip(&header).filter(|(_, h)| !timing.contains(h)).map(|(v, _)| v).collect::<Vec<_>>().join(",")
         })
         .collect()
 }
