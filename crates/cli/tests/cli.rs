@@ -53,3 +53,34 @@ fn bad_input_is_a_clean_error() {
     assert!(err.contains("bad-scene.yaml") && err.contains("obstacles[0].circle.radius"), "{err}");
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn train_smoke_run_and_errors() {
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-train-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = rlnav(&["train", "--config", "smoke", "--out", dir.to_str().unwrap(), "--set", "train.max_epochs=2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("2 epochs, 1024 env steps"), "{text}");
+    assert!(text.contains("evaluation on empty-room (20 episodes"), "{text}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["iterations"], 2);
+    // Evaluate the run on another scenario.
+    let out = rlnav(&["eval", "--run", dir.to_str().unwrap(), "--scenario", "static-room", "--episodes", "10"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(dir.join("eval.json").is_file());
+    // Mistakes are clean errors.
+    for (args, needle) in [
+        (vec!["train", "--set", "train.max_epohs=3"], "max_epohs"),
+        (vec!["train", "--config", "nope"], "static-mlp"),
+        (vec!["train", "--config", "smoke", "--out", dir.to_str().unwrap()], "already holds a run"),
+        (vec!["train", "--resume", "/nonexistent/run"], "not a run folder"),
+    ] {
+        let out = rlnav(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(needle) && !err.contains("panicked"), "{args:?}: {err}");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
