@@ -340,7 +340,8 @@ fn train(
     );
     if let Some(e) = summary.final_eval {
         println!(
-            "evaluation on {} ({} episodes in scenes not seen in training): success {:.1}%, collision {:.1}%, timeout {:.1}%",
+            "evaluation of the epoch-{} policy on {} ({} episodes in scenes not seen in training): success {:.1}%, collision {:.1}%, timeout {:.1}%",
+            summary.final_epoch,
             summary.eval_scenario,
             e.episodes,
             100.0 * e.success_rate,

@@ -109,8 +109,14 @@ pub struct Summary {
     pub steps_per_s: f64,
     /// Whether the run was stopped before `max_epochs` (Ctrl-C).
     pub interrupted: bool,
-    /// Final evaluation on scenes not used in training.
+    /// The final test: the best checkpoint (chosen by the periodic evaluations) evaluated on
+    /// `eval.episodes` fresh episodes, drawn from a seed neither training nor model selection
+    /// used.
     pub final_eval: Option<EvalResult>,
+    /// Epoch of the checkpoint the final test ran on.
+    pub final_epoch: usize,
+    /// The periodic evaluation after the last epoch (on the selection seed).
+    pub last_epoch_eval: Option<EvalResult>,
     /// Scenario of the final evaluation.
     pub eval_scenario: String,
     /// Best evaluation success rate seen, and its epoch.
@@ -171,6 +177,11 @@ fn eval_setup(cfg: &RunConfig) -> Result<Arc<EnvSetup>, TrainError> {
 /// Evaluation seeds are far from every training environment's stream.
 fn eval_seed(seed: u64) -> u64 {
     seed ^ 0xE7A1_5EED_0000_0000
+}
+
+/// The final test's seed, distinct from the evaluations that select the best checkpoint.
+fn test_seed(seed: u64) -> u64 {
+    seed ^ 0x7E57_5EED_0000_0000
 }
 
 /// Writes `write(tmp)` into a fresh folder, then swaps it in for `dir` (no half-written
@@ -485,6 +496,14 @@ pub fn train(
         }
     }
     save_checkpoint(&out.join("checkpoint"), &ppo, &st)?;
+    let (final_eval, final_epoch) = if interrupted {
+        (None, 0)
+    } else {
+        let (which, epoch) = if out.join("best").join("state.json").is_file() { ("best", st.best_epoch) } else { ("checkpoint", st.epoch) };
+        let (_, learner) = load_learner(out, which)?;
+        let (r, _) = evaluate(&learner, eval.clone(), cfg.eval.episodes, cfg.eval.envs, test_seed(cfg.seed), threads)?;
+        (Some(r), epoch)
+    };
     let summary = Summary {
         name: cfg.name.clone(),
         iterations: st.epoch,
@@ -492,7 +511,9 @@ pub fn train(
         wall_s: st.wall_s,
         steps_per_s: st.env_steps as f64 / st.wall_s.max(1e-9),
         interrupted,
-        final_eval: if interrupted { None } else { last_eval },
+        final_eval,
+        final_epoch,
+        last_epoch_eval: if interrupted { None } else { last_eval },
         eval_scenario: cfg.eval.scenario.clone(),
         best_success_rate: st.best_success_rate.max(0.0),
         best_epoch: st.best_epoch,
