@@ -499,7 +499,11 @@ pub fn train(
     let (final_eval, final_epoch) = if interrupted {
         (None, 0)
     } else {
-        let (which, epoch) = if out.join("best").join("state.json").is_file() { ("best", st.best_epoch) } else { ("checkpoint", st.epoch) };
+        let (which, epoch) = if out.join("best").join("state.json").is_file() {
+            ("best", st.best_epoch)
+        } else {
+            ("checkpoint", st.epoch)
+        };
         let (_, learner) = load_learner(out, which)?;
         let (r, _) = evaluate(&learner, eval.clone(), cfg.eval.episodes, cfg.eval.envs, test_seed(cfg.seed), threads)?;
         (Some(r), epoch)
