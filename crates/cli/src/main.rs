@@ -258,11 +258,10 @@ fn train(
     use rlnav_train::{TrainOptions, load_run_config};
     let (cfg, out, resuming) = match resume {
         Some(dir) => {
-            let mut cfg = rlnav_train::run::read_run_config(&dir)?;
+            let cfg = rlnav_train::run::read_run_config(&dir)?;
             if !set.is_empty() {
                 anyhow::bail!("--set cannot change a run being resumed");
             }
-            cfg.name = cfg.name.clone();
             (cfg, dir, true)
         }
         None => {
