@@ -60,7 +60,7 @@ enum Command {
         /// Training configuration: a shipped name (static-mlp, smoke) or a YAML file.
         #[arg(long)]
         config: Option<String>,
-        /// Run folder (default: runs/<config name>-<seed>).
+        /// Run folder (default: runs/<config name>-<seed>, or the first free -2, -3... after it).
         #[arg(long)]
         out: Option<PathBuf>,
         /// Run seed (overrides the config's).
@@ -269,7 +269,9 @@ fn train(
                 set.push(format!("seed={s}"));
             }
             let cfg = load_run_config(config.as_deref(), &set)?;
-            let out = out.unwrap_or_else(|| PathBuf::from(format!("runs/{}-{}", cfg.name, cfg.seed)));
+            let out = out.unwrap_or_else(|| {
+                rlnav_train::run::fresh_run_dir(&PathBuf::from(format!("runs/{}-{}", cfg.name, cfg.seed)))
+            });
             (cfg, out, false)
         }
     };

@@ -295,6 +295,18 @@ fn csv_row(r: &EpochReport) -> String {
     )
 }
 
+/// `base` if no run lives there yet, else the first free `base-2`, `base-3`, ... (so that
+/// running the default command twice starts a second run instead of failing).
+pub fn fresh_run_dir(base: &Path) -> PathBuf {
+    if !base.join("config.yaml").exists() {
+        return base.to_path_buf();
+    }
+    (2..)
+        .map(|i| PathBuf::from(format!("{}-{i}", base.display())))
+        .find(|p| !p.join("config.yaml").exists())
+        .expect("some suffix is free")
+}
+
 /// Reads a run folder's resolved configuration.
 pub fn read_run_config(dir: &Path) -> Result<RunConfig, TrainError> {
     let path = dir.join("config.yaml");

@@ -80,6 +80,8 @@ fn stop_checkpoint_and_resume() {
     let e = train(&cfg, &opts(&out, false), &mut |_| {}).unwrap_err();
     assert!(e.to_string().contains("already holds a run"), "{e}");
     assert_eq!(std::fs::read(out.join("metrics.csv")).unwrap(), before);
+    // The default folder choice moves on to a free name.
+    assert_eq!(rlnav_train::run::fresh_run_dir(&out), PathBuf::from(format!("{}-2", out.display())));
     // Resume to the end.
     let cfg = read_run_config(&out).unwrap();
     let mut epochs = Vec::new();
