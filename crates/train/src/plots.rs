@@ -31,6 +31,10 @@ fn read(csv: &Path) -> std::io::Result<Vec<Point>> {
         .collect())
 }
 
+fn millions(x: &f64) -> String {
+    format!("{:.1}M", x / 1e6)
+}
+
 /// Draws `out` (SVG) from the run's `metrics.csv`.
 pub fn training_svg(csv: &Path, out: &Path) -> Result<(), String> {
     let pts = read(csv).map_err(|e| format!("{}: {e}", csv.display()))?;
@@ -63,7 +67,7 @@ pub fn training_svg(csv: &Path, out: &Path) -> Result<(), String> {
         .y_label_area_size(50)
         .build_cartesian_2d(0.0..max_steps, (rmin - pad)..(rmax + pad))
         .map_err(|e| err(&e))?;
-    chart.configure_mesh().x_desc("env steps").draw().map_err(|e| err(&e))?;
+    chart.configure_mesh().x_desc("env steps").x_label_formatter(&millions).draw().map_err(|e| err(&e))?;
     chart.draw_series(LineSeries::new(returns, &BLUE)).map_err(|e| err(&e))?;
 
     let mut chart = ChartBuilder::on(&bottom)
@@ -73,7 +77,7 @@ pub fn training_svg(csv: &Path, out: &Path) -> Result<(), String> {
         .y_label_area_size(50)
         .build_cartesian_2d(0.0..max_steps, 0.0..1.0)
         .map_err(|e| err(&e))?;
-    chart.configure_mesh().x_desc("env steps").draw().map_err(|e| err(&e))?;
+    chart.configure_mesh().x_desc("env steps").x_label_formatter(&millions).draw().map_err(|e| err(&e))?;
     chart
         .draw_series(LineSeries::new(smooth(&|p| p.success), &BLUE))
         .map_err(|e| err(&e))?
