@@ -354,7 +354,12 @@ impl Lidar {
 
     /// Adds the spec's Gaussian range noise and dropout to a scan (no-op when both are zero).
     pub fn apply_noise<R: rand::Rng>(&self, rng: &mut R, out: &mut [f32]) {
-        let (std, drop) = (self.spec.noise_std, self.spec.dropout);
+        self.corrupt(rng, self.spec.noise_std, self.spec.dropout, out);
+    }
+
+    /// Adds Gaussian range noise of `std` and drops beams with probability `drop` (both 0:
+    /// nothing, and no random draws).
+    pub fn corrupt<R: rand::Rng>(&self, rng: &mut R, std: f32, drop: f32, out: &mut [f32]) {
         if std <= 0.0 && drop <= 0.0 {
             return;
         }

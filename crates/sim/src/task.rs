@@ -9,7 +9,8 @@ use crate::movers::Mover;
 use crate::robot::{DiffDrive, DriveParams, Footprint, RobotSpec};
 use crate::scenario::{NoEpisode, Scenario, ScenarioSpec};
 use crate::world::World;
-use rand::SeedableRng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::StandardNormal;
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -159,6 +160,47 @@ impl Default for RewardConfig {
     }
 }
 
+/// Domain randomisation, every term off (0) by default. With all terms off no random draws
+/// are made, so episodes are bit-identical to a run without this section.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RandomizationConfig {
+    /// Gaussian noise added to each lidar value of the observation (m).
+    pub obs_lidar_std: f32,
+    /// Gaussian noise added to the observed goal distance (m).
+    pub obs_goal_distance_std: f32,
+    /// Gaussian noise added to the observed goal bearing (rad).
+    pub obs_goal_bearing_std: f32,
+    /// Gaussian noise added to the normalised action before scaling.
+    pub action_std: f32,
+    /// Control latency: a command is applied this many control steps after it is given.
+    pub latency_steps: usize,
+    /// Probability that a beam reads no return (on top of the lidar's own dropout).
+    pub lidar_dropout: f32,
+    /// Per-episode relative jitter of the wheel radius (0.05: ±5%).
+    pub wheel_radius_jitter: f32,
+    /// Per-episode relative jitter of the wheel separation.
+    pub wheel_separation_jitter: f32,
+    /// Per-episode relative jitter of the robot's speed limits (linear and angular).
+    pub speed_limit_jitter: f32,
+}
+
+impl RandomizationConfig {
+    fn validate(&self) -> Result<(), Invalid> {
+        check_range("randomization.obs_lidar_std", self.obs_lidar_std, 0.0, 10.0)?;
+        check_range("randomization.obs_goal_distance_std", self.obs_goal_distance_std, 0.0, 10.0)?;
+        check_range("randomization.obs_goal_bearing_std", self.obs_goal_bearing_std, 0.0, 3.2)?;
+        check_range("randomization.action_std", self.action_std, 0.0, 10.0)?;
+        if self.latency_steps > 100 {
+            return Err(Invalid::new("randomization.latency_steps", "an integer in [0, 100]"));
+        }
+        check_range("randomization.lidar_dropout", self.lidar_dropout, 0.0, 1.0)?;
+        check_range("randomization.wheel_radius_jitter", self.wheel_radius_jitter, 0.0, 0.9)?;
+        check_range("randomization.wheel_separation_jitter", self.wheel_separation_jitter, 0.0, 0.9)?;
+        check_range("randomization.speed_limit_jitter", self.speed_limit_jitter, 0.0, 0.9)
+    }
+}
+
 /// The task: timing, termination, action scaling, reward and observation layout.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -180,6 +222,8 @@ pub struct TaskConfig {
     pub reward: RewardConfig,
     /// Observation layout.
     pub observation: ObservationLayout,
+    /// Domain randomisation (all off by default).
+    pub randomization: RandomizationConfig,
 }
 
 impl Default for TaskConfig {
@@ -193,6 +237,7 @@ impl Default for TaskConfig {
             action: ActionConfig::default(),
             reward: RewardConfig::default(),
             observation: ObservationLayout::default(),
+            randomization: RandomizationConfig::default(),
         }
     }
 }
@@ -227,6 +272,7 @@ impl Validate for TaskConfig {
             check_range(k, v, -1e4, 1e4)?;
         }
         check_range("reward.proximity_range", r.proximity_range, 0.0, 100.0)?;
+        self.randomization.validate()?;
         for (i, t) in self.observation.0.iter().enumerate() {
             if let ObsTerm::Lidar { beams, clip } = t {
                 if *beams == 0 {
@@ -282,6 +328,12 @@ pub struct EpisodeStats {
     pub initial_distance: f32,
     /// Final distance to the goal (m).
     pub final_distance: f32,
+    /// This episode's wheel radius after randomisation (m).
+    pub wheel_radius: f32,
+    /// This episode's wheel separation after randomisation (m).
+    pub wheel_separation: f32,
+    /// This episode's speed-limit scale after randomisation.
+    pub speed_scale: f32,
 }
 
 /// What the environment reports after each control step.
@@ -401,6 +453,10 @@ pub struct NavEnv {
     movers: Vec<Mover>,
     mover_rays: RayGeometry,
     time: f32,
+    /// Commands given but not yet applied (control latency), oldest first.
+    pending: std::collections::VecDeque<Twist>,
+    applied: Twist,
+    speed_scale: f32,
 }
 
 impl NavEnv {
@@ -436,6 +492,9 @@ impl NavEnv {
             movers: Vec::new(),
             mover_rays: RayGeometry::default(),
             time: 0.0,
+            pending: std::collections::VecDeque::with_capacity(setup.task.randomization.latency_steps + 1),
+            applied: Twist::default(),
+            speed_scale: 1.0,
             setup,
         };
         env.reset()?;
@@ -456,7 +515,18 @@ impl NavEnv {
         self.movers = ep.movers;
         self.time = 0.0;
         self.world = ep.world;
-        self.drive = DiffDrive::new(DriveParams::from(&self.setup.robot), ep.start);
+        let dr = &self.setup.task.randomization;
+        let mut params = DriveParams::from(&self.setup.robot);
+        let jitter = |j: f32, rng: &mut Pcg64Mcg| if j > 0.0 { 1.0 + rng.random_range(-j..=j) } else { 1.0 };
+        params.wheel_radius *= jitter(dr.wheel_radius_jitter, &mut self.rng);
+        params.wheel_separation *= jitter(dr.wheel_separation_jitter, &mut self.rng);
+        self.speed_scale = jitter(dr.speed_limit_jitter, &mut self.rng);
+        params.linear = params.linear.map(|v| v * self.speed_scale);
+        params.max_angular *= self.speed_scale;
+        self.drive = DiffDrive::new(params, ep.start);
+        self.pending.clear();
+        self.pending.extend(std::iter::repeat_n(Twist::default(), dr.latency_steps));
+        self.applied = Twist::default();
         self.goal = ep.goal;
         self.last_command = Twist::default();
         self.distance = (self.goal - ep.start.position()).length();
@@ -483,6 +553,7 @@ impl NavEnv {
             s.lidar.scan_layers(&self.drive.pose, &layers, &mut self.dirs, &mut self.ranges);
         }
         s.lidar.apply_noise(&mut self.rng, &mut self.ranges);
+        s.lidar.corrupt(&mut self.rng, 0.0, s.task.randomization.lidar_dropout, &mut self.ranges);
     }
 
     fn current_min_range(&self) -> f32 {
@@ -491,6 +562,9 @@ impl NavEnv {
 
     /// Applies a normalised action in `[-1, 1]²` for one control period.
     pub fn step(&mut self, action: [f32; 2]) -> StepOutcome {
+        let std = self.setup.task.randomization.action_std;
+        let action =
+            if std > 0.0 { action.map(|a| a + std * self.rng.sample::<f32, _>(StandardNormal)) } else { action };
         let cmd = self.setup.task.action.to_twist(action);
         self.step_twist(cmd)
     }
@@ -504,6 +578,11 @@ impl NavEnv {
             if cmd.linear.is_finite() { cmd.linear.clamp(a.linear[0], a.linear[1]) } else { a.linear[0] },
             if cmd.angular.is_finite() { cmd.angular.clamp(a.angular[0], a.angular[1]) } else { 0.0 },
         );
+        // Control latency: the command given now is applied `latency_steps` steps later.
+        self.pending.push_back(cmd);
+        let given = cmd;
+        let cmd = self.pending.pop_front().unwrap_or(given);
+        self.applied = cmd;
         let mut contact = false;
         for _ in 0..setup.substeps {
             let before = self.drive.pose.position();
@@ -521,7 +600,7 @@ impl NavEnv {
                 break;
             }
         }
-        self.last_command = cmd;
+        self.last_command = given;
         self.speed_sum += self.drive.velocity.linear.abs();
         self.steps += 1;
         self.scan();
@@ -559,6 +638,9 @@ impl NavEnv {
                 path_length: self.path_length,
                 initial_distance: self.initial_distance,
                 final_distance: d,
+                wheel_radius: self.drive.params.wheel_radius,
+                wheel_separation: self.drive.params.wheel_separation,
+                speed_scale: self.speed_scale,
             });
         }
         StepOutcome {
@@ -570,7 +652,15 @@ impl NavEnv {
 
     /// Writes the observation vector (layout of the task) into `out`.
     pub fn write_observation(&mut self, out: &mut [f32]) {
-        let (dist, bearing) = self.goal_polar();
+        let (mut dist, mut bearing) = self.goal_polar();
+        let dr = &self.setup.task.randomization;
+        if dr.obs_goal_distance_std > 0.0 {
+            dist = (dist + dr.obs_goal_distance_std * self.rng.sample::<f32, _>(StandardNormal)).max(0.0);
+        }
+        if dr.obs_goal_bearing_std > 0.0 {
+            bearing = wrap_angle(bearing + dr.obs_goal_bearing_std * self.rng.sample::<f32, _>(StandardNormal));
+        }
+        let lidar_std = dr.obs_lidar_std;
         let mut k = 0;
         for term in &self.setup.task.observation.0 {
             match term {
@@ -579,7 +669,9 @@ impl NavEnv {
                     min_pool(&self.ranges, pooled);
                     for (o, r) in out[k..k + beams].iter_mut().zip(pooled.iter()) {
                         // +inf (no return) clips to the far end; NaN never occurs in simulation.
-                        *o = r.clamp(clip[0], clip[1]);
+                        let noise =
+                            if lidar_std > 0.0 { lidar_std * self.rng.sample::<f32, _>(StandardNormal) } else { 0.0 };
+                        *o = (r.min(clip[1]) + noise).clamp(clip[0], clip[1]);
                     }
                     k += beams;
                 }
@@ -628,6 +720,16 @@ impl NavEnv {
     /// The robot's pose.
     pub fn pose(&self) -> Pose2 {
         self.drive.pose
+    }
+
+    /// The command applied to the wheels in the last control step (after latency).
+    pub fn applied_command(&self) -> Twist {
+        self.applied
+    }
+
+    /// This episode's drive parameters (after randomisation).
+    pub fn drive_params(&self) -> DriveParams {
+        self.drive.params
     }
 
     /// The goal.
