@@ -19,6 +19,7 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("random-static", include_str!("../../../scenarios/random-static.yaml")),
     ("dynamic-room", include_str!("../../../scenarios/dynamic-room.yaml")),
     ("random-dynamic", include_str!("../../../scenarios/random-dynamic.yaml")),
+    ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
 ];
 
 /// A walled rectangular arena.
@@ -171,6 +172,11 @@ pub struct ScenarioSpec {
     /// (m, default 0.1).
     #[serde(default = "default_margin")]
     pub margin: f32,
+    /// A goal that moves (the article's repository trains and tests with a moving target):
+    /// it travels in a straight line in a random direction at a speed drawn per episode and
+    /// bounces off the edges of the placement area. Obstacles do not stop it.
+    #[serde(default)]
+    pub goal_motion: Option<GoalMotion>,
     /// Moving obstacles.
     #[serde(default)]
     pub movers: Vec<MoverSpec>,
@@ -185,6 +191,14 @@ fn free() -> Placement {
 fn default_distance() -> [f32; 2] {
     [1.0, 5.0]
 }
+/// How a moving goal moves.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GoalMotion {
+    /// Speed range `[min, max]` (m/s), drawn per episode.
+    pub speed: [f32; 2],
+}
+
 fn default_margin() -> f32 {
     0.1
 }
@@ -235,6 +249,9 @@ impl Validate for ScenarioSpec {
         }
         check_interval("start_goal_distance", self.start_goal_distance, 0.0, 10_000.0)?;
         check_range("margin", self.margin, 0.0, 10.0)?;
+        if let Some(g) = &self.goal_motion {
+            check_interval("goal_motion.speed", g.speed, 0.0, 10.0)?;
+        }
         for (i, m) in self.movers.iter().enumerate() {
             m.validate().map_err(|e| e.under(&format!("movers[{i}]")))?;
         }
@@ -268,6 +285,8 @@ pub struct EpisodeSetup {
     pub goal: Vec2,
     /// Moving obstacles, placed at time 0.
     pub movers: Vec<Mover>,
+    /// Goal velocity (m/s); zero for a fixed goal.
+    pub goal_velocity: Vec2,
 }
 
 /// Why no episode could be drawn.
@@ -345,6 +364,24 @@ impl Scenario {
         &self.spec
     }
 
+    /// Moves a goal by `velocity * dt`, reflecting off the placement area's edges (less the
+    /// clearance); returns the new position and velocity.
+    pub fn move_goal(&self, goal: Vec2, velocity: Vec2, dt: f32) -> (Vec2, Vec2) {
+        let (lo, hi) = (self.area.min + Vec2::splat(self.clearance), self.area.max - Vec2::splat(self.clearance));
+        let mut p = goal + velocity * dt;
+        let mut v = velocity;
+        for axis in 0..2 {
+            if p[axis] < lo[axis] {
+                p[axis] = 2.0 * lo[axis] - p[axis];
+                v[axis] = -v[axis];
+            } else if p[axis] > hi[axis] {
+                p[axis] = 2.0 * hi[axis] - p[axis];
+                v[axis] = -v[axis];
+            }
+        }
+        (p.clamp(lo, hi), v)
+    }
+
     /// The area starts, goals and generated obstacles are drawn in.
     pub fn area(&self) -> Rect {
         self.area
@@ -376,7 +413,19 @@ impl Scenario {
             match self.place(&world, &grid, rng) {
                 Ok((start, goal)) => {
                     let movers = self.draw_movers(start.position(), goal, rng);
-                    return Ok(EpisodeSetup { world, start, goal, movers });
+                    let goal_velocity = match &self.spec.goal_motion {
+                        Some(m) => {
+                            let speed = if m.speed[1] > m.speed[0] {
+                                rng.random_range(m.speed[0]..=m.speed[1])
+                            } else {
+                                m.speed[0]
+                            };
+                            let heading = rng.random_range(-PI..PI);
+                            Vec2::new(heading.cos(), heading.sin()) * speed
+                        }
+                        None => Vec2::ZERO,
+                    };
+                    return Ok(EpisodeSetup { world, start, goal, movers, goal_velocity });
                 }
                 Err(r) => reason = r,
             }

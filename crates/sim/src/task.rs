@@ -457,6 +457,7 @@ pub struct NavEnv {
     pending: std::collections::VecDeque<Twist>,
     applied: Twist,
     speed_scale: f32,
+    goal_velocity: Vec2,
 }
 
 impl NavEnv {
@@ -495,6 +496,7 @@ impl NavEnv {
             pending: std::collections::VecDeque::with_capacity(setup.task.randomization.latency_steps + 1),
             applied: Twist::default(),
             speed_scale: 1.0,
+            goal_velocity: Vec2::ZERO,
             setup,
         };
         env.reset()?;
@@ -528,6 +530,7 @@ impl NavEnv {
         self.pending.extend(std::iter::repeat_n(Twist::default(), dr.latency_steps));
         self.applied = Twist::default();
         self.goal = ep.goal;
+        self.goal_velocity = ep.goal_velocity;
         self.last_command = Twist::default();
         self.distance = (self.goal - ep.start.position()).length();
         self.initial_distance = self.distance;
@@ -588,6 +591,10 @@ impl NavEnv {
             let before = self.drive.pose.position();
             self.drive.step(cmd, task.physics_dt);
             self.time += task.physics_dt;
+            if self.goal_velocity != Vec2::ZERO {
+                (self.goal, self.goal_velocity) =
+                    setup.scenario.move_goal(self.goal, self.goal_velocity, task.physics_dt);
+            }
             for m in &mut self.movers {
                 m.set_time(self.time);
             }

@@ -128,3 +128,30 @@ fn moving_obstacles_are_seen_and_hit() {
     }
     assert_eq!(outcome, Some(Outcome::Collision), "the box runs the slow robot down");
 }
+
+#[test]
+fn moving_goal_moves_within_the_room_and_can_be_reached() {
+    use rlnav_sim::task::NavEnv;
+    use rlnav_sim::{GreedyGoal, Outcome};
+    let setup = Arc::new(EnvSetup::from_scenario_name("moving-goal").unwrap());
+    let area = setup.scenario.area();
+    let mut env = NavEnv::new(setup.clone(), 3).unwrap();
+    let mut speeds = Vec::new();
+    for _ in 0..300 {
+        let before = env.goal();
+        let out = env.step([-1.0, 1.0]);
+        if out.terminated || out.truncated {
+            env.reset().unwrap();
+            continue;
+        }
+        let g = env.goal();
+        assert!(area.contains(g), "goal {g:?} left the room");
+        speeds.push((g - before).length() / 0.1);
+    }
+    // 0.05-0.15 m/s; a bounce can only shorten a step.
+    assert!(speeds.iter().all(|s| *s <= 0.15 + 1e-4), "{speeds:?}");
+    assert!(speeds.iter().any(|s| *s > 0.05), "the goal moves");
+    let mut c = GreedyGoal::default();
+    let ok = (0..30).filter(|_| env.run_episode(&mut c).unwrap().outcome == Outcome::Success).count();
+    assert!(ok >= 22, "greedy catches a slow target: {ok}/30");
+}
