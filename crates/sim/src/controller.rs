@@ -1,7 +1,7 @@
 //! The [`Controller`] trait that joins evaluation, benchmarking and deployment, the data a
 //! controller sees ([`RobotObservation`]), and two simple controllers for tests and demos.
 
-use crate::geometry::{Pose2, Vec2, wrap_angle};
+use crate::geometry::{Pose2, Vec2};
 use crate::lidar::LidarSpec;
 
 /// A body velocity command or measurement, as `geometry_msgs/Twist` restricted to the plane.
@@ -76,8 +76,7 @@ pub struct RobotObservation {
 impl RobotObservation {
     /// Goal distance (m) and bearing (rad, in the robot frame, wrapped to (-π, π]).
     pub fn goal_polar(&self) -> (f32, f32) {
-        let g = self.pose.to_local(self.goal);
-        (g.length(), wrap_angle(g.y.atan2(g.x)))
+        self.pose.polar_of(self.goal)
     }
 }
 

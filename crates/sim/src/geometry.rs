@@ -75,6 +75,13 @@ impl Pose2 {
         Vec2::new(c * d.x + s * d.y, -s * d.x + c * d.y)
     }
 
+    /// Distance and bearing (in this pose's frame, wrapped to (-π, π]) of a parent-frame point.
+    #[inline]
+    pub fn polar_of(&self, p: Vec2) -> (f32, f32) {
+        let l = self.to_local(p);
+        (l.length(), wrap_angle(l.y.atan2(l.x)))
+    }
+
     /// A point in this pose's frame expressed in the parent frame.
     #[inline]
     pub fn to_parent(&self, p: Vec2) -> Vec2 {

@@ -700,8 +700,7 @@ impl NavEnv {
 
     /// Goal distance and bearing in the robot frame.
     pub fn goal_polar(&self) -> (f32, f32) {
-        let g = self.drive.pose.to_local(self.goal);
-        (g.length(), wrap_angle(g.y.atan2(g.x)))
+        self.drive.pose.polar_of(self.goal)
     }
 
     /// Fills what a robot's topics would carry (scan, odometry, goal) for a [`Controller`].

@@ -59,8 +59,9 @@ pub fn evaluate(
     let units = ppo.model().lstm_units();
     let mut state = (units > 0).then(|| (vec![0.0f32; envs * units], vec![0.0f32; envs * units]));
     let mut actions = vec![[0.0f32; 2]; envs];
+    let net = ppo.inference_net();
     while done.iter().any(|d| *d < quota) {
-        let (mu, next) = ppo.act_mean(&venv.obs, state.take());
+        let (mu, next) = ppo.act_mean(&net, &venv.obs, state.take());
         state = next;
         let a = mu.len() / envs;
         for (e, act) in actions.iter_mut().enumerate() {

@@ -500,15 +500,25 @@ impl Ppo {
         }
     }
 
-    /// Deterministic actions (the Gaussian means) for raw observations `[n][obs]`, carrying
-    /// `state` for recurrent policies; used by evaluation.
-    pub fn act_mean(&self, raw_obs: &[f32], state: Option<RecurrentState>) -> (Vec<f32>, Option<RecurrentState>) {
+    /// The network without gradient tracking, for acting: build it once, then call
+    /// [`Self::act_mean`] with it for every step.
+    pub fn inference_net(&self) -> ActorCritic {
+        self.model().valid()
+    }
+
+    /// Deterministic actions (the Gaussian means) of `net` (from [`Self::inference_net`]) for
+    /// raw observations `[n][obs]`, carrying `state` for recurrent policies; used by evaluation.
+    pub fn act_mean(
+        &self,
+        net: &ActorCritic,
+        raw_obs: &[f32],
+        state: Option<RecurrentState>,
+    ) -> (Vec<f32>, Option<RecurrentState>) {
         let mut x = raw_obs.to_vec();
         if self.cfg.normalize_input {
             self.obs_norm.normalize(&mut x);
         }
-        let net = self.model().valid();
-        let (mu, _, next) = self.infer(&net, x, state);
+        let (mu, _, next) = self.infer(net, x, state);
         (mu, next)
     }
 }
