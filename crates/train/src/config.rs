@@ -3,8 +3,9 @@
 //! unknown keys rejected; `--set a.b.c=VALUE` overrides any value by its dotted path.
 
 use rlnav_policy::NetworkConfig;
-use rlnav_sim::config::{ConfigError, Invalid, Validate, check_positive, check_range};
+use rlnav_sim::config::{ConfigError, Invalid, Validate, check_positive, check_range, preset_or_file};
 use rlnav_sim::task::TaskConfig;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use serde_norway::Value;
 
@@ -288,42 +289,21 @@ pub fn set_dotted(root: &mut Value, key: &str, value: Value) -> Result<(), Strin
 /// Builds a run config: a preset or file (default: the built-in default), then each
 /// `KEY=VALUE` override (VALUE is YAML: `3`, `0.5`, `true`, `[64, 64]`, `name`).
 pub fn load_run_config(config: Option<&str>, overrides: &[String]) -> Result<RunConfig, ConfigError> {
-    let name = config.unwrap_or(DEFAULT_CONFIG);
-    let (file, text) = match TRAIN_PRESETS.iter().find(|(n, _)| *n == name) {
-        Some((n, t)) => (format!("<embedded config {n}>"), t.to_string()),
-        None if name.ends_with(".yaml") || name.ends_with(".yml") || name.contains('/') => {
-            let text = std::fs::read_to_string(name).map_err(|source| ConfigError::Io { file: name.into(), source })?;
-            (name.to_string(), text)
-        }
-        None => {
-            return Err(ConfigError::UnknownPreset {
-                kind: "training config",
-                name: name.into(),
-                known: TRAIN_PRESETS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
-            });
-        }
-    };
-    let cfg: RunConfig = rlnav_sim::config::from_yaml_str(&file, &text)?;
-    if overrides.is_empty() {
-        return Ok(cfg);
-    }
-    let mut value = rlnav_sim::config::to_yaml_value(&cfg);
-    for o in overrides {
-        let (k, v) = o.split_once('=').ok_or_else(|| ConfigError::Invalid {
-            file: "--set".into(),
-            key: o.clone(),
-            expected: "KEY=VALUE".into(),
-        })?;
-        let v: Value = serde_norway::from_str(v)
-            .map_err(|e| ConfigError::Parse { file: "--set".into(), message: format!("{k}: {e}") })?;
-        set_dotted(&mut value, k.trim(), v).map_err(|e| ConfigError::Invalid {
-            file: "--set".into(),
-            key: k.into(),
-            expected: e,
-        })?;
-    }
-    let text = serde_norway::to_string(&value).expect("a YAML value serialises");
-    rlnav_sim::config::from_yaml_str(&format!("{file} with --set"), &text)
+    let cfg: RunConfig = preset_or_file("training config", TRAIN_PRESETS, config.unwrap_or(DEFAULT_CONFIG))?;
+    let pairs = overrides
+        .iter()
+        .map(|o| {
+            let (k, v) = o.split_once('=').ok_or_else(|| ConfigError::Invalid {
+                file: "--set".into(),
+                key: o.clone(),
+                expected: "KEY=VALUE".into(),
+            })?;
+            let v: Value = serde_norway::from_str(v)
+                .map_err(|e| ConfigError::Parse { file: "--set".into(), message: format!("{k}: {e}") })?;
+            Ok((k.trim().to_string(), v))
+        })
+        .collect::<Result<Vec<_>, ConfigError>>()?;
+    with_overrides(&cfg, pairs, "--set", "")
 }
 
 /// Applies a stage's dotted task overrides to a task config.
@@ -332,19 +312,33 @@ pub fn apply_task_overrides(
     overrides: &std::collections::BTreeMap<String, Value>,
     stage: &str,
 ) -> Result<TaskConfig, ConfigError> {
-    if overrides.is_empty() {
-        return Ok(task.clone());
-    }
-    let mut value = rlnav_sim::config::to_yaml_value(task);
+    let pairs = overrides.iter().map(|(k, v)| (k.clone(), v.clone()));
+    with_overrides(task, pairs, &format!("<curriculum stage {stage}>"), "task.")
+}
+
+/// `value` with each `(dotted key, value)` set, read back (so unknown keys and bad values are
+/// rejected as in a file) and validated; errors name `file` and the key (after `prefix`).
+fn with_overrides<T: Serialize + DeserializeOwned + Validate + Clone>(
+    value: &T,
+    overrides: impl IntoIterator<Item = (String, Value)>,
+    file: &str,
+    prefix: &str,
+) -> Result<T, ConfigError> {
+    let mut tree = rlnav_sim::config::to_yaml_value(value);
+    let mut changed = false;
     for (k, v) in overrides {
-        set_dotted(&mut value, k, v.clone()).map_err(|e| ConfigError::Invalid {
-            file: format!("<curriculum stage {stage}>"),
-            key: format!("task.{k}"),
+        set_dotted(&mut tree, &k, v).map_err(|e| ConfigError::Invalid {
+            file: file.into(),
+            key: format!("{prefix}{k}"),
             expected: e,
         })?;
+        changed = true;
     }
-    let text = serde_norway::to_string(&value).expect("a YAML value serialises");
-    rlnav_sim::config::from_yaml_str(&format!("<curriculum stage {stage}>"), &text)
+    if !changed {
+        return Ok(value.clone());
+    }
+    let text = serde_norway::to_string(&tree).expect("a YAML value serialises");
+    rlnav_sim::config::from_yaml_str(file, &text)
 }
 
 #[cfg(test)]
@@ -364,6 +358,21 @@ mod tests {
         assert_eq!(c.train.max_epochs, 3);
         assert_eq!(c.task.reward.goal, 40.0);
         assert_eq!(c.network.hidden, vec![32, 32]);
+    }
+
+    #[test]
+    fn stage_task_overrides() {
+        let mut o = std::collections::BTreeMap::new();
+        o.insert("reward.goal".to_string(), Value::from(40.0));
+        let t = apply_task_overrides(&TaskConfig::default(), &o, "s").unwrap();
+        assert_eq!(t.reward.goal, 40.0);
+        o.insert("reward.gaol".to_string(), Value::from(1.0));
+        let e = apply_task_overrides(&TaskConfig::default(), &o, "s").unwrap_err().to_string();
+        assert!(e.contains("<curriculum stage s>") && e.contains("unknown field `gaol`"), "{e}");
+        o.remove("reward.gaol");
+        o.insert("goal_tolerance".to_string(), Value::from(-1.0));
+        let e = apply_task_overrides(&TaskConfig::default(), &o, "s").unwrap_err().to_string();
+        assert!(e.contains("goal_tolerance"), "{e}");
     }
 
     #[test]
