@@ -137,10 +137,9 @@ fn run(cli: Cli) -> Result<()> {
         Command::Train { config, out, seed, set, resume } => train(config, out, seed, set, resume),
         Command::Eval { run, scenario, episodes, seed, out } => {
             anyhow::ensure!(episodes > 0, "--episodes must be at least 1");
-            let (r, eps) = rlnav_train::run::evaluate_run(&run, scenario.as_deref(), episodes, 50, seed)?;
-            let cfg = rlnav_train::run::read_run_config(&run)?;
-            let scenario = scenario.unwrap_or(cfg.eval.scenario);
-            println!("{} on {} ({} episodes, seed {seed})", run.display(), scenario, r.episodes);
+            let ev = rlnav_train::run::evaluate_run(&run, scenario.as_deref(), episodes, 50, seed)?;
+            let r = &ev.summary;
+            println!("{} on {} ({} episodes, seed {seed})", run.display(), ev.scenario, r.episodes);
             println!(
                 "success {:.1}% | collision {:.1}% | timeout {:.1}% | mean return {:.1} | mean time to goal {:.1} s",
                 100.0 * r.success_rate,
@@ -150,8 +149,7 @@ fn run(cli: Cli) -> Result<()> {
                 r.mean_success_time
             );
             let path = out.unwrap_or(run).join("eval.json");
-            let json = serde_json::json!({"scenario": scenario, "seed": seed, "summary": r, "episodes": eps});
-            std::fs::write(&path, serde_json::to_string_pretty(&json)?)
+            std::fs::write(&path, serde_json::to_string_pretty(&ev)?)
                 .with_context(|| format!("writing {}", path.display()))?;
             println!("wrote {}", path.display());
             Ok(())

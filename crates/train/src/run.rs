@@ -10,7 +10,7 @@ use rlnav_policy::{ActorCritic, RunningMeanStd, training_device};
 use rlnav_sim::RobotSpec;
 use rlnav_sim::config::ConfigError;
 use rlnav_sim::scenario::ScenarioSpec;
-use rlnav_sim::task::{EnvSetup, EpisodeStats, Outcome, SimError};
+use rlnav_sim::task::{EnvSetup, EpisodeStats, Outcome, SimError, TaskConfig};
 use rlnav_sim::vec_env::VecEnv;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
@@ -163,15 +163,46 @@ fn stages(cfg: &RunConfig) -> Vec<StageConfig> {
     }
 }
 
-fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Arc<EnvSetup>, TrainError> {
-    let task = apply_task_overrides(&cfg.task, &stage.task, &stage.name)?;
-    let setup = EnvSetup::new(ScenarioSpec::load(&stage.scenario)?, RobotSpec::load(&cfg.robot)?, task)?;
-    Ok(Arc::new(setup))
+/// Environments of the run's robot on `scenario` with `task`.
+fn env_setup(cfg: &RunConfig, scenario: &str, task: TaskConfig) -> Result<Arc<EnvSetup>, TrainError> {
+    Ok(Arc::new(EnvSetup::new(ScenarioSpec::load(scenario)?, RobotSpec::load(&cfg.robot)?, task)?))
 }
 
-fn eval_setup(cfg: &RunConfig) -> Result<Arc<EnvSetup>, TrainError> {
-    let setup = EnvSetup::new(ScenarioSpec::load(&cfg.eval.scenario)?, RobotSpec::load(&cfg.robot)?, cfg.task.clone())?;
-    Ok(Arc::new(setup))
+fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Arc<EnvSetup>, TrainError> {
+    env_setup(cfg, &stage.scenario, apply_task_overrides(&cfg.task, &stage.task, &stage.name)?)
+}
+
+/// Reads a checkpoint's trainer state.
+fn read_state(ck: &Path) -> Result<TrainerState, TrainError> {
+    let path = ck.join("state.json");
+    let text = fs::read_to_string(&path).map_err(|e| io_err(&path, e))?;
+    serde_json::from_str(&text)
+        .map_err(|e| TrainError::Resume { path: path.display().to_string(), message: e.to_string() })
+}
+
+/// Puts a checkpoint's network, normalisers and learning rate (and, when `optimizer`, the
+/// Adam state) into `ppo`.
+fn restore_checkpoint(
+    ppo: &mut Ppo,
+    cfg: &RunConfig,
+    ck: &Path,
+    st: &TrainerState,
+    optimizer: bool,
+) -> Result<(), TrainError> {
+    let model = load_model(cfg, ck, st.obs_norm.dim(), &training_device().autodiff())?;
+    let fresh = AdamConfig::new().with_epsilon(1e-8).init();
+    let optim = if optimizer {
+        let path = ck.join("optimizer.bpk");
+        fresh
+            .load(&path)
+            .map_err(|e| TrainError::Resume { path: path.display().to_string(), message: e.to_string() })?
+    } else {
+        fresh
+    };
+    ppo.restore(model, optim, st.learning_rate);
+    ppo.obs_norm = st.obs_norm.clone();
+    ppo.value_norm = st.value_norm.clone();
+    Ok(())
 }
 
 /// Evaluation seeds are far from every training environment's stream.
@@ -337,9 +368,8 @@ pub fn train(
             expected: format!("stages with the same observation length ({obs_dim}), got {}", s.obs_dim()),
         }));
     }
-    let eval = eval_setup(cfg)?;
-    let plain = training_device();
-    let mut ppo = Ppo::new(&cfg.train, &cfg.network, obs_dim, 2, plain.clone(), cfg.seed);
+    let eval = env_setup(cfg, &cfg.eval.scenario, cfg.task.clone())?;
+    let mut ppo = Ppo::new(&cfg.train, &cfg.network, obs_dim, 2, training_device(), cfg.seed);
 
     let mut st = TrainerState {
         epoch: 0,
@@ -362,16 +392,8 @@ pub fn train(
             });
         }
         let ck = out.join("checkpoint");
-        let text = fs::read_to_string(ck.join("state.json")).map_err(|e| io_err(&ck.join("state.json"), e))?;
-        st = serde_json::from_str(&text)
-            .map_err(|e| TrainError::Resume { path: ck.display().to_string(), message: e.to_string() })?;
-        let model = load_model(cfg, &ck, obs_dim, &plain.clone().autodiff())?;
-        let optim = AdamConfig::new().with_epsilon(1e-8).init().load(ck.join("optimizer.bpk")).map_err(|e| {
-            TrainError::Resume { path: ck.join("optimizer.bpk").display().to_string(), message: e.to_string() }
-        })?;
-        ppo.restore(model, optim, st.learning_rate);
-        ppo.obs_norm = st.obs_norm.clone();
-        ppo.value_norm = st.value_norm.clone();
+        st = read_state(&ck)?;
+        restore_checkpoint(&mut ppo, cfg, &ck, &st, true)?;
     } else {
         if out.join("config.yaml").exists() {
             return Err(TrainError::Io {
@@ -546,17 +568,23 @@ pub fn train(
 pub fn load_learner(dir: &Path, which: &str) -> Result<(RunConfig, Ppo), TrainError> {
     let cfg = read_run_config(dir)?;
     let ck = dir.join(which);
-    let text = fs::read_to_string(ck.join("state.json")).map_err(|e| io_err(&ck.join("state.json"), e))?;
-    let st: TrainerState = serde_json::from_str(&text)
-        .map_err(|e| TrainError::Resume { path: ck.display().to_string(), message: e.to_string() })?;
-    let obs_dim = st.obs_norm.dim();
-    let plain = training_device();
-    let mut ppo = Ppo::new(&cfg.train, &cfg.network, obs_dim, 2, plain.clone(), cfg.seed);
-    let model = load_model(&cfg, &ck, obs_dim, &plain.autodiff())?;
-    ppo.restore(model, AdamConfig::new().init(), st.learning_rate);
-    ppo.obs_norm = st.obs_norm;
-    ppo.value_norm = st.value_norm;
+    let st = read_state(&ck)?;
+    let mut ppo = Ppo::new(&cfg.train, &cfg.network, st.obs_norm.dim(), 2, training_device(), cfg.seed);
+    restore_checkpoint(&mut ppo, &cfg, &ck, &st, false)?;
     Ok((cfg, ppo))
+}
+
+/// What `rlnav eval` reports (and writes as `eval.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct RunEvaluation {
+    /// Scenario evaluated on.
+    pub scenario: String,
+    /// Seed of the episodes.
+    pub seed: u64,
+    /// Aggregate results.
+    pub summary: EvalResult,
+    /// Every episode.
+    pub episodes: Vec<EpisodeStats>,
 }
 
 /// Evaluates a run's final checkpoint on `scenario` (default: the run's evaluation scenario)
@@ -567,11 +595,12 @@ pub fn evaluate_run(
     episodes: usize,
     envs: usize,
     seed: u64,
-) -> Result<(EvalResult, Vec<EpisodeStats>), TrainError> {
+) -> Result<RunEvaluation, TrainError> {
     let (cfg, ppo) = load_learner(dir, "checkpoint")?;
-    let scenario = scenario.unwrap_or(&cfg.eval.scenario);
-    let setup = EnvSetup::new(ScenarioSpec::load(scenario)?, RobotSpec::load(&cfg.robot)?, cfg.task.clone())?;
+    let scenario = scenario.unwrap_or(&cfg.eval.scenario).to_string();
+    let setup = env_setup(&cfg, &scenario, cfg.task.clone())?;
     let envs = envs.clamp(1, episodes.max(1));
     let episodes = episodes / envs * envs;
-    Ok(evaluate(&ppo, Arc::new(setup), episodes, envs, seed, cfg.train.threads)?)
+    let (summary, episodes) = evaluate(&ppo, setup, episodes, envs, seed, cfg.train.threads)?;
+    Ok(RunEvaluation { scenario, seed, summary, episodes })
 }
