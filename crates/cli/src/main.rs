@@ -228,7 +228,7 @@ fn sim_speed(args: &EnvArgs, envs: usize, threads: usize, steps: usize, seed: u6
     );
     let report = measure_speed(&mut venv, steps, steps / 10, seed)?;
     if reference {
-        let (fast, slow) = rlnav_sim::lidar::compare_casters(&venv.envs()[0], 2000);
+        let (fast, slow) = rlnav_sim::vec_env::compare_casters(&venv.envs()[0], 2000);
         eprintln!(
             "lidar, one thread: culled caster {:.0} scans/s, parry2d brute force {:.0} scans/s ({:.1}x)",
             fast,

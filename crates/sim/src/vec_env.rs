@@ -187,3 +187,28 @@ pub fn measure_speed(env: &mut VecEnv, steps: usize, warmup: usize, seed: u64) -
         steps: steps * env.len(),
     })
 }
+
+/// Times the culled caster and the parry2d brute-force reference on the scene and pose of
+/// `env`, `scans` scans each, on the calling thread. Returns scans per second `(fast, reference)`.
+pub fn compare_casters(env: &NavEnv, scans: usize) -> (f64, f64) {
+    let lidar = &env.setup().lidar;
+    let world = env.world();
+    let n = lidar.beams();
+    let (mut dirs, mut out) = (vec![crate::geometry::Vec2::ZERO; n], vec![0.0; n]);
+    let mut pose = env.pose();
+    let t = std::time::Instant::now();
+    for i in 0..scans {
+        pose.yaw = crate::geometry::wrap_angle(pose.yaw + 0.001 * i as f32);
+        lidar.scan(&pose, world.ray_geometry(), &mut dirs, &mut out);
+        std::hint::black_box(&out);
+    }
+    let fast = scans as f64 / t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let ref_scans = (scans / 10).max(1);
+    for i in 0..ref_scans {
+        pose.yaw = crate::geometry::wrap_angle(pose.yaw + 0.001 * i as f32);
+        lidar.scan_reference(&pose, world, &mut out);
+        std::hint::black_box(&out);
+    }
+    (fast, ref_scans as f64 / t.elapsed().as_secs_f64())
+}

@@ -220,6 +220,8 @@ impl Ppo {
         let mut actions = vec![[0.0f32; 2]; n];
         let units = net.lstm_units();
         self.sim_s = 0.0;
+        let mut truncated: Vec<usize> = Vec::with_capacity(n);
+        let mut bootstrap = vec![0.0f32; n];
         for t in 0..self.buffer.horizon {
             let obs = self.normalized(&env.obs, true);
             if units > 0 && t % self.cfg.seq_len == 0 {
@@ -252,8 +254,9 @@ impl Ppo {
             env.step(&actions)?;
             self.sim_s += t_sim.elapsed().as_secs_f64();
             // Time-outs are not failures of the policy: bootstrap them with γ·V(final obs).
-            let truncated: Vec<usize> = (0..n).filter(|e| env.truncated[*e]).collect();
-            let mut bootstrap = vec![0.0; n];
+            truncated.clear();
+            truncated.extend((0..n).filter(|e| env.truncated[*e]));
+            bootstrap.fill(0.0);
             if !truncated.is_empty() {
                 let mut rows = Vec::with_capacity(truncated.len() * d);
                 for &e in &truncated {
