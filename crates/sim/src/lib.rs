@@ -4,6 +4,7 @@
 //! The pieces, bottom up:
 //! - [`geometry`]: poses, angles and the obstacle shapes worlds are made of;
 //! - [`world`]: a static world (walls and obstacles), footprint collision and clearance;
+//! - [`map`]: occupancy-grid maps in the ROS `map_server` format, cast exactly and fast;
 //! - [`lidar`]: [`LidarSpec`] and the ray caster (a culled hot loop, checked against parry2d);
 //! - [`robot`]: [`RobotSpec`] presets and [`DiffDrive`] kinematics;
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
@@ -32,6 +33,7 @@ pub mod config;
 pub mod controller;
 pub mod geometry;
 pub mod lidar;
+pub mod map;
 pub mod movers;
 pub mod reachability;
 pub mod robot;

@@ -11,12 +11,14 @@
 
 use crate::config::{Invalid, Validate, check_range};
 use crate::geometry::{Pose2, Primitive, Vec2, point_segment_distance, wrap_angle};
+use crate::map::OccupancyGrid;
 use crate::world::World;
 use parry2d::query::Ray;
 use rand::RngExt;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::{PI, TAU};
+use std::sync::Arc;
 
 /// What a 2D lidar is: beam geometry, range limits, mount pose and imperfections.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -108,6 +110,8 @@ pub struct RayGeometry {
     circles: Vec<(Vec2, f32)>,
     groups: Vec<SegmentGroup>,
     segments: Vec<(Vec2, Vec2)>,
+    /// An occupancy-grid map, cast exactly cell by cell.
+    grid: Option<Arc<OccupancyGrid>>,
 }
 
 #[derive(Clone, Debug)]
@@ -149,6 +153,12 @@ impl RayGeometry {
         self.circles.clear();
         self.groups.clear();
         self.segments.clear();
+        self.grid = None;
+    }
+
+    /// Adds an occupancy grid (replacing any other).
+    pub fn set_grid(&mut self, grid: Arc<OccupancyGrid>) {
+        self.grid = Some(grid);
     }
 
     /// Adds a circle.
@@ -168,7 +178,7 @@ impl RayGeometry {
 
     /// Number of circles and segments (what the caster tests against).
     pub fn primitive_count(&self) -> usize {
-        self.circles.len() + self.segments.len()
+        self.circles.len() + self.segments.len() + self.grid.is_some() as usize
     }
 }
 
@@ -325,6 +335,12 @@ impl Lidar {
                 });
             }
         }
+
+        if let Some(grid) = &geometry.grid {
+            for (o, d) in out.iter_mut().zip(dirs) {
+                *o = grid.cast(p, *d, *o);
+            }
+        }
     }
 
     /// Brute force: every beam against every obstacle with parry2d's ray casts. The reference
@@ -340,6 +356,9 @@ impl Lidar {
                 .iter()
                 .filter_map(|ob| ob.shape.cast_ray(&ob.pose, &ray, limit, true))
                 .fold(limit, f32::min);
+            if let Some(grid) = world.grid() {
+                *o = grid.cast(ray.origin, ray.dir, *o);
+            }
         }
         self.finish(out);
     }

@@ -45,6 +45,16 @@ impl ReachabilityGrid {
                 }
             }
         }
+        if let Some(grid) = world.grid() {
+            for iy in 0..height {
+                for ix in 0..width {
+                    let cell = &mut blocked[iy * width + ix];
+                    if !*cell && !grid.is_clear(centre(ix, iy), inflation) {
+                        *cell = true;
+                    }
+                }
+            }
+        }
         let mut labels = vec![0u32; width * height];
         let mut next = 0u32;
         let mut queue = VecDeque::new();

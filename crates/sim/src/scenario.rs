@@ -4,12 +4,14 @@
 
 use crate::config::{ConfigError, Invalid, Validate, check_interval, check_range, preset_or_file};
 use crate::geometry::{Obstacle, ObstacleSpec, Pose2, Rect, Vec2};
+use crate::map::{MAP_PRESETS, MapRef, OccupancyGrid};
 use crate::movers::{Mover, MoverShape, MoverSpec, PathMode};
 use crate::reachability::ReachabilityGrid;
 use crate::world::World;
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::{PI, TAU};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The scenarios shipped in `scenarios/`: `(name, yaml)`.
@@ -20,6 +22,7 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("dynamic-room", include_str!("../../../scenarios/dynamic-room.yaml")),
     ("random-dynamic", include_str!("../../../scenarios/random-dynamic.yaml")),
     ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
+    ("warehouse", include_str!("../../../scenarios/warehouse.yaml")),
 ];
 
 /// A walled rectangular arena.
@@ -180,6 +183,18 @@ pub struct ScenarioSpec {
     /// Moving obstacles.
     #[serde(default)]
     pub movers: Vec<MoverSpec>,
+    /// An occupancy-grid map (ROS `map_server` YAML) as the static world; `obstacles` are
+    /// added on top of it.
+    #[serde(default)]
+    pub map: Option<MapRef>,
+    /// Whether start and goal must be connected for a disc of the robot's clearance radius on
+    /// a 5 cm grid (default true). Benchmarks whose worlds are known to be solvable by a
+    /// non-circular robot through gaps narrower than its circumscribed circle (BARN) turn it off.
+    #[serde(default = "yes")]
+    pub require_path: bool,
+    /// Directory relative paths in this file are resolved against (set when loaded from a file).
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
 }
 
 fn default_robot() -> String {
@@ -217,7 +232,10 @@ impl Validate for ScenarioSpec {
         }
         if let Some(g) = &self.procedural {
             if self.arena.is_none() {
-                return Err(Invalid::new("procedural", "an `arena` to generate obstacles in"));
+                return Err(Invalid::new(
+                    "procedural",
+                    "an `arena` to generate obstacles in (over a map, an arena with `walls: false`)",
+                ));
             }
             if g.count[0] > g.count[1] || g.count[1] > 1000 {
                 return Err(Invalid::new("procedural.count", "[min, max] with min <= max <= 1000"));
@@ -241,8 +259,8 @@ impl Validate for ScenarioSpec {
                 Placement::Poses(v) if v.is_empty() => {
                     return Err(Invalid::new(format!("{key}.poses"), "at least one pose"));
                 }
-                Placement::Free if self.arena.is_none() && self.obstacles.is_empty() => {
-                    return Err(Invalid::new(key, "an `arena` or obstacles to bound `free` placement"));
+                Placement::Free if self.arena.is_none() && self.obstacles.is_empty() && self.map.is_none() => {
+                    return Err(Invalid::new(key, "an `arena`, a `map` or obstacles to bound `free` placement"));
                 }
                 _ => {}
             }
@@ -270,7 +288,23 @@ impl Validate for ScenarioSpec {
 impl ScenarioSpec {
     /// A shipped scenario by name, or a YAML file by path.
     pub fn load(name_or_path: &str) -> Result<Self, ConfigError> {
-        preset_or_file("scenario", SCENARIO_PRESETS, name_or_path)
+        let mut spec: Self = preset_or_file("scenario", SCENARIO_PRESETS, name_or_path)?;
+        if !SCENARIO_PRESETS.iter().any(|(n, _)| *n == name_or_path) {
+            spec.base_dir = Some(Path::new(name_or_path).parent().unwrap_or(Path::new(".")).to_path_buf());
+        }
+        Ok(spec)
+    }
+
+    /// Loads the scenario's map, if it has one: a shipped map's name, or a path resolved
+    /// against the scenario file's directory.
+    pub fn load_map(&self) -> Result<Option<Arc<OccupancyGrid>>, ConfigError> {
+        let Some(m) = &self.map else { return Ok(None) };
+        let is_preset = MAP_PRESETS.iter().any(|p| p.0 == m.file);
+        let path = match (&self.base_dir, is_preset) {
+            (Some(dir), false) if Path::new(&m.file).is_relative() => dir.join(&m.file).display().to_string(),
+            _ => m.file.clone(),
+        };
+        OccupancyGrid::load(&path, m.unknown).map(|g| Some(Arc::new(g)))
     }
 }
 
@@ -305,6 +339,7 @@ pub struct Scenario {
     spec: ScenarioSpec,
     area: Rect,
     fixed: Vec<Obstacle>,
+    grid: Option<Arc<OccupancyGrid>>,
     /// World and reachability of a scenario without a generator (built once).
     fixed_world: Option<(Arc<World>, Arc<ReachabilityGrid>)>,
     clearance: f32,
@@ -334,19 +369,50 @@ impl Scenario {
             .enumerate()
             .map(|(i, s)| Obstacle::new(s).map_err(|e| e.under(&format!("obstacles[{i}]")).in_file(&file)))
             .collect::<Result<Vec<_>, _>>()?;
+        let grid = spec.load_map()?;
+        let clearance = clearance + spec.margin;
         let area = match &spec.arena {
             Some(a) => a.rect(),
-            None => World::new(fixed.clone()).bounds(),
+            None => {
+                let mut area = match &grid {
+                    Some(g) if fixed.is_empty() => g.free_bounds(),
+                    Some(g) => {
+                        let (a, b) = (World::new(fixed.clone()).bounds(), g.free_bounds());
+                        Rect { min: a.min.min(b.min), max: a.max.max(b.max) }
+                    }
+                    None => World::new(fixed.clone()).bounds(),
+                };
+                // Starts and goals may lie outside the obstacles' extent (BARN's goal does).
+                let pad = Vec2::splat(clearance + 0.5);
+                for p in [&spec.start, &spec.goal] {
+                    let points: Vec<Vec2> = match p {
+                        Placement::Free => Vec::new(),
+                        Placement::Region { min, max } => vec![Vec2::from(*min), Vec2::from(*max)],
+                        Placement::Points(v) => v.iter().map(|q| Vec2::from(*q)).collect(),
+                        Placement::Poses(v) => v.iter().map(|q| q.position()).collect(),
+                    };
+                    for q in points {
+                        area.min = area.min.min(q - pad);
+                        area.max = area.max.max(q + pad);
+                    }
+                }
+                area
+            }
         };
-        let clearance = clearance + spec.margin;
-        let fixed_world = if spec.procedural.is_none() {
-            let world = World::new(fixed.clone());
+        let mut s = Self {
+            spec,
+            area,
+            fixed,
+            grid,
+            fixed_world: None,
+            clearance,
+            start_clearance: clearance + start_extra.max(0.0),
+        };
+        if s.spec.procedural.is_none() {
+            let world = s.build_world(s.fixed.clone());
             let grid = ReachabilityGrid::new(&world, area, clearance, GRID_RESOLUTION);
-            Some((Arc::new(world), Arc::new(grid)))
-        } else {
-            None
-        };
-        let s = Self { spec, area, fixed, fixed_world, clearance, start_clearance: clearance + start_extra.max(0.0) };
+            s.fixed_world = Some((Arc::new(world), Arc::new(grid)));
+        }
         // Fail at load time, with the file named, rather than at the first reset.
         let mut rng = rand_pcg::Pcg64Mcg::new(0x5eed);
         for _ in 0..3 {
@@ -362,6 +428,23 @@ impl Scenario {
     /// The spec.
     pub fn spec(&self) -> &ScenarioSpec {
         &self.spec
+    }
+
+    /// The map, if the scenario has one.
+    pub fn grid(&self) -> Option<&Arc<OccupancyGrid>> {
+        self.grid.as_ref()
+    }
+
+    fn build_world(&self, obstacles: Vec<Obstacle>) -> World {
+        match &self.grid {
+            Some(g) => World::with_grid(obstacles, g.clone()),
+            None => World::new(obstacles),
+        }
+    }
+
+    /// Whether a start or goal may be placed at `p`: on a map, only known-free cells.
+    fn placeable(&self, world: &World, p: Vec2) -> bool {
+        world.grid().is_none_or(|g| g.is_known_free(p))
     }
 
     /// Moves a goal by `velocity * dt`, reflecting off the placement area's edges (less the
@@ -477,7 +560,11 @@ impl Scenario {
         let mut free_start = 0;
         for _ in 0..PLACEMENT_TRIES {
             let start = self.draw(&self.spec.start, rng);
-            if grid.label(start.position()) == 0 || !world.is_clear(start.position(), self.start_clearance) {
+            let reachable = !self.spec.require_path || grid.label(start.position()) != 0;
+            if !reachable
+                || !world.is_clear(start.position(), self.start_clearance)
+                || !self.placeable(world, start.position())
+            {
                 continue;
             }
             free_start += 1;
@@ -486,8 +573,9 @@ impl Scenario {
                 let d = (goal - start.position()).length();
                 if d >= dmin
                     && d <= dmax
-                    && grid.connected(start.position(), goal)
+                    && (!self.spec.require_path || grid.connected(start.position(), goal))
                     && world.is_clear(goal, self.clearance)
+                    && self.placeable(world, goal)
                 {
                     return Ok((start, goal));
                 }
@@ -522,7 +610,7 @@ impl Scenario {
     pub fn generate<R: rand::Rng>(&self, rng: &mut R) -> World {
         let mut obstacles = self.fixed.clone();
         let Some(g) = &self.spec.procedural else {
-            return World::new(obstacles);
+            return self.build_world(obstacles);
         };
         let count = rng.random_range(g.count[0]..=g.count[1]);
         let mut placed: Vec<(Vec2, f32)> = Vec::new();
@@ -575,7 +663,7 @@ impl Scenario {
                 }
             }
         }
-        World::new(obstacles)
+        self.build_world(obstacles)
     }
 }
 

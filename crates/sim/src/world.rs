@@ -3,8 +3,10 @@
 
 use crate::geometry::{Obstacle, Pose2, Rect, Vec2};
 use crate::lidar::RayGeometry;
+use crate::map::OccupancyGrid;
 use crate::robot::Footprint;
 use parry2d::query::intersection_test;
+use std::sync::Arc;
 
 /// Obstacles and walls, compiled for queries.
 #[derive(Clone, Debug)]
@@ -12,6 +14,7 @@ pub struct World {
     obstacles: Vec<Obstacle>,
     rays: RayGeometry,
     bounds: Rect,
+    grid: Option<Arc<OccupancyGrid>>,
 }
 
 impl World {
@@ -27,7 +30,26 @@ impl World {
         if obstacles.is_empty() {
             (min, max) = (Vec2::ZERO, Vec2::ZERO);
         }
-        Self { obstacles, rays, bounds: Rect { min, max } }
+        Self { obstacles, rays, bounds: Rect { min, max }, grid: None }
+    }
+
+    /// Builds a world from an occupancy-grid map plus obstacles placed on it.
+    pub fn with_grid(obstacles: Vec<Obstacle>, grid: Arc<OccupancyGrid>) -> Self {
+        let mut w = Self::new(obstacles);
+        let b = grid.bounds();
+        w.bounds = if w.obstacles.is_empty() {
+            b
+        } else {
+            Rect { min: w.bounds.min.min(b.min), max: w.bounds.max.max(b.max) }
+        };
+        w.rays.set_grid(grid.clone());
+        w.grid = Some(grid);
+        w
+    }
+
+    /// The occupancy-grid map, if the world has one.
+    pub fn grid(&self) -> Option<&Arc<OccupancyGrid>> {
+        self.grid.as_ref()
     }
 
     /// The obstacles.
@@ -49,6 +71,9 @@ impl World {
     /// cull first, then the exact distance from `base_link` to the obstacle: a disc footprint
     /// is decided by it, a polygon footprint within reach goes to parry2d.
     pub fn footprint_collides(&self, footprint: &Footprint, pose: &Pose2) -> bool {
+        if self.grid.as_ref().is_some_and(|g| g.footprint_collides(footprint, pose)) {
+            return true;
+        }
         let p = pose.position();
         let r = footprint.radius();
         let robot = pose.to_parry();
@@ -75,11 +100,15 @@ impl World {
 
     /// Distance from `p` to the nearest obstacle surface (negative inside one; +inf if none).
     pub fn clearance(&self, p: Vec2) -> f32 {
-        self.obstacles.iter().map(|o| o.primitive.signed_distance(p)).fold(f32::INFINITY, f32::min)
+        let grid = self.grid.as_ref().map_or(f32::INFINITY, |g| g.clearance(p));
+        self.obstacles.iter().map(|o| o.primitive.signed_distance(p)).fold(grid, f32::min)
     }
 
     /// Like [`World::clearance`] but stops early: whether the clearance at `p` is at least `min`.
     pub fn is_clear(&self, p: Vec2, min: f32) -> bool {
+        if self.grid.as_ref().is_some_and(|g| !g.is_clear(p, min)) {
+            return false;
+        }
         self.obstacles
             .iter()
             .all(|o| (o.bound_center - p).length() - o.bound_radius >= min || o.primitive.signed_distance(p) >= min)

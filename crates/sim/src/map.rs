@@ -1,0 +1,597 @@
+//! Occupancy-grid maps in the ROS `map_server` format (a YAML file naming a PGM or PNG image),
+//! used as a scenario's static world.
+//!
+//! Cells are free, occupied or unknown, decided from the image exactly as `map_server` does
+//! (`negate`, `occupied_thresh`, `free_thresh`, `mode`). Unknown cells count as walls unless
+//! the scenario says otherwise: a robot should not drive or be placed where the map knows
+//! nothing.
+//!
+//! The lidar casts rays through the grid exactly (a ray stops where it enters the first
+//! blocked cell) and fast: in open space it jumps by the Chebyshev distance to the nearest
+//! blocked cell, and only walks cell by cell (Amanatides–Woo) near walls.
+
+use crate::config::{ConfigError, Invalid, Validate, check_positive, check_range};
+use crate::geometry::{Pose2, Rect, Vec2};
+use crate::robot::Footprint;
+use parry2d::query::intersection_test;
+use parry2d::shape::Cuboid;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Maps shipped in `scenarios/maps/`: `(name, yaml, image file name, image bytes)`.
+pub const MAP_PRESETS: &[(&str, &str, &str, &[u8])] = &[(
+    "warehouse",
+    include_str!("../../../scenarios/maps/warehouse.yaml"),
+    "warehouse.pgm",
+    include_bytes!("../../../scenarios/maps/warehouse.pgm"),
+)];
+
+/// How image pixels become occupancy, as in `map_server`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MapMode {
+    /// Occupied, free or unknown by the two thresholds (the default).
+    #[default]
+    Trinary,
+    /// Like trinary; values between the thresholds are occupancy probabilities, which the
+    /// simulator treats as unknown. A transparent pixel is unknown.
+    Scale,
+    /// The pixel value is the occupancy in percent (0–100); anything above 100 is unknown.
+    Raw,
+}
+
+/// `negate` is written `0`/`1` by `map_saver` and `true`/`false` by people.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Flag {
+    /// `true` / `false`.
+    Bool(bool),
+    /// `0` / `1`.
+    Int(i64),
+}
+
+impl Flag {
+    fn get(self) -> Option<bool> {
+        match self {
+            Flag::Bool(b) => Some(b),
+            Flag::Int(0) => Some(false),
+            Flag::Int(1) => Some(true),
+            Flag::Int(_) => None,
+        }
+    }
+}
+
+/// A `map_server` map file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSpec {
+    /// The image, relative to the YAML file.
+    pub image: String,
+    /// Cell size (m).
+    pub resolution: f32,
+    /// Pose of the lower-left pixel's corner `[x, y, yaw]` in the world.
+    pub origin: Pose2,
+    /// Whether white means occupied (default 0).
+    #[serde(default = "no_flag")]
+    pub negate: Flag,
+    /// Occupancy probability above which a cell is occupied (default 0.65).
+    #[serde(default = "default_occupied")]
+    pub occupied_thresh: f32,
+    /// Occupancy probability below which a cell is free (default 0.25).
+    #[serde(default = "default_free")]
+    pub free_thresh: f32,
+    /// Pixel interpretation (default trinary).
+    #[serde(default)]
+    pub mode: MapMode,
+}
+
+fn no_flag() -> Flag {
+    Flag::Int(0)
+}
+fn default_occupied() -> f32 {
+    0.65
+}
+fn default_free() -> f32 {
+    0.25
+}
+
+impl Validate for MapSpec {
+    fn validate(&self) -> Result<(), Invalid> {
+        if self.image.trim().is_empty() {
+            return Err(Invalid::new("image", "the image file's name"));
+        }
+        check_positive("resolution", self.resolution)?;
+        check_range("resolution", self.resolution, 1e-4, 100.0)?;
+        if !(self.origin.x.is_finite() && self.origin.y.is_finite() && self.origin.yaw.is_finite()) {
+            return Err(Invalid::new("origin", "finite [x, y, yaw]"));
+        }
+        if self.negate.get().is_none() {
+            return Err(Invalid::new("negate", "0 or 1"));
+        }
+        check_range("occupied_thresh", self.occupied_thresh, 0.0, 1.0)?;
+        check_range("free_thresh", self.free_thresh, 0.0, 1.0)?;
+        if self.free_thresh >= self.occupied_thresh {
+            return Err(Invalid::new(
+                "free_thresh",
+                format!("less than occupied_thresh ({}), got {}", self.occupied_thresh, self.free_thresh),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What a cell holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Cell {
+    /// Known free.
+    Free = 0,
+    /// Occupied.
+    Occupied = 1,
+    /// Unknown.
+    Unknown = 2,
+}
+
+/// What unknown cells are to the simulator.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnknownCells {
+    /// Walls: the lidar sees them and touching one is a collision (default).
+    #[default]
+    Occupied,
+    /// Open space (but never a start or a goal).
+    Free,
+}
+
+/// Largest map side, in cells.
+const MAX_SIDE: u32 = 20_000;
+
+/// A loaded occupancy grid, ready for collision, clearance and ray queries.
+#[derive(Clone, Debug)]
+pub struct OccupancyGrid {
+    /// Where the YAML came from (for messages).
+    pub source: String,
+    width: usize,
+    height: usize,
+    resolution: f32,
+    origin: Pose2,
+    cells: Vec<Cell>,
+    blocked: Vec<bool>,
+    /// Chebyshev distance (in cells) from each cell to the nearest blocked cell (0 for a
+    /// blocked cell; large when there is none).
+    cheb: Vec<u32>,
+}
+
+impl OccupancyGrid {
+    /// Loads a map: a shipped name (`warehouse`) or a YAML file path.
+    pub fn load(name_or_path: &str, unknown: UnknownCells) -> Result<Self, ConfigError> {
+        if let Some((name, yaml, image_name, bytes)) = MAP_PRESETS.iter().find(|m| m.0 == name_or_path) {
+            let file = format!("<embedded map {name}>");
+            let spec: MapSpec = crate::config::from_yaml_str(&file, yaml)?;
+            if spec.image != *image_name {
+                return Err(Invalid::new("image", format!("`{image_name}`")).in_file(&file));
+            }
+            return Self::from_image_bytes(&file, &spec, bytes, unknown);
+        }
+        if !(name_or_path.ends_with(".yaml") || name_or_path.ends_with(".yml") || name_or_path.contains('/')) {
+            return Err(ConfigError::UnknownPreset {
+                kind: "map",
+                name: name_or_path.to_string(),
+                known: MAP_PRESETS.iter().map(|m| m.0).collect::<Vec<_>>().join(", "),
+            });
+        }
+        Self::load_file(Path::new(name_or_path), unknown)
+    }
+
+    /// Loads a `map_server` YAML file and the image it names.
+    pub fn load_file(path: &Path, unknown: UnknownCells) -> Result<Self, ConfigError> {
+        let spec: MapSpec = crate::config::from_yaml_file(path)?;
+        let file = path.display().to_string();
+        if spec.image.ends_with(".xacro") || spec.image.ends_with(".yaml") {
+            return Err(Invalid::new("image", "a PGM or PNG image").in_file(&file));
+        }
+        let image_path: PathBuf = path.parent().unwrap_or(Path::new(".")).join(&spec.image);
+        let bytes = std::fs::read(&image_path).map_err(|source| ConfigError::Invalid {
+            file: file.clone(),
+            key: "image".into(),
+            expected: format!("a readable image at {}: {source}", image_path.display()),
+        })?;
+        Self::from_image_bytes(&file, &spec, &bytes, unknown)
+    }
+
+    /// Builds the grid from the image's encoded bytes (PGM, PNG...).
+    pub fn from_image_bytes(
+        file: &str,
+        spec: &MapSpec,
+        bytes: &[u8],
+        unknown: UnknownCells,
+    ) -> Result<Self, ConfigError> {
+        let bad = |expected: String| ConfigError::Invalid { file: file.to_string(), key: "image".into(), expected };
+        let img = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| bad(format!("a PGM or PNG image `{}`: {e}", spec.image)))?;
+        if img.format().is_none() {
+            return Err(bad(format!("a PGM or PNG image, but `{}` is neither", spec.image)));
+        }
+        let img = img.decode().map_err(|e| bad(format!("a decodable image `{}`: {e}", spec.image)))?;
+        let (w, h) = (img.width(), img.height());
+        if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+            return Err(bad(format!("an image of 1 to {MAX_SIDE} pixels a side, got {w} x {h}")));
+        }
+        let rgba = img.to_rgba8();
+        let has_alpha = img.color().has_alpha();
+        let negate = spec.negate.get().unwrap_or(false);
+        let (width, height) = (w as usize, h as usize);
+        let mut cells = vec![Cell::Unknown; width * height];
+        for (x, y, px) in rgba.enumerate_pixels() {
+            let [r, g, b, a] = px.0;
+            // map_server: the shade is the mean of the colour channels.
+            let shade = (r as f32 + g as f32 + b as f32) / 3.0;
+            let cell = match spec.mode {
+                MapMode::Raw => match r {
+                    0..=100 => classify(r as f32 / 100.0, spec),
+                    _ => Cell::Unknown,
+                },
+                MapMode::Scale if has_alpha && a < 255 => Cell::Unknown,
+                _ => {
+                    let p = if negate { shade / 255.0 } else { (255.0 - shade) / 255.0 };
+                    classify(p, spec)
+                }
+            };
+            // Image row 0 is the top of the map; grid row 0 is the bottom (at the origin).
+            cells[(height - 1 - y as usize) * width + x as usize] = cell;
+        }
+        if !cells.contains(&Cell::Free) {
+            return Err(ConfigError::Invalid {
+                file: file.to_string(),
+                key: "image".into(),
+                expected: format!(
+                    "some free cells, but none of `{}`'s {w} x {h} pixels is free with negate {}, \
+                     free_thresh {} (is `negate` or `mode` wrong?)",
+                    spec.image, negate as u8, spec.free_thresh
+                ),
+            });
+        }
+        Ok(Self::from_cells(file, width, height, spec.resolution, spec.origin, cells, unknown))
+    }
+
+    /// Builds a grid from cells, row 0 at the bottom (`cells[iy * width + ix]`).
+    pub fn from_cells(
+        source: &str,
+        width: usize,
+        height: usize,
+        resolution: f32,
+        origin: Pose2,
+        cells: Vec<Cell>,
+        unknown: UnknownCells,
+    ) -> Self {
+        assert_eq!(cells.len(), width * height, "cells must be width x height");
+        let blocked: Vec<bool> = cells
+            .iter()
+            .map(|c| *c == Cell::Occupied || (*c == Cell::Unknown && unknown == UnknownCells::Occupied))
+            .collect();
+        let cheb = chebyshev_transform(&blocked, width, height);
+        Self { source: source.to_string(), width, height, resolution, origin, cells, blocked, cheb }
+    }
+
+    /// `(width, height)` in cells.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// Cell size (m).
+    pub fn resolution(&self) -> f32 {
+        self.resolution
+    }
+
+    /// Pose of the lower-left corner of cell (0, 0).
+    pub fn origin(&self) -> Pose2 {
+        self.origin
+    }
+
+    /// The cell at `(ix, iy)`.
+    pub fn cell(&self, ix: usize, iy: usize) -> Cell {
+        self.cells[iy * self.width + ix]
+    }
+
+    /// Whether the cell at `(ix, iy)` stops rays and robots.
+    pub fn is_blocked(&self, ix: usize, iy: usize) -> bool {
+        self.blocked[iy * self.width + ix]
+    }
+
+    /// The cell containing world point `p`, if inside the grid.
+    pub fn cell_of(&self, p: Vec2) -> Option<(usize, usize)> {
+        let g = self.origin.to_local(p) / self.resolution;
+        let (ix, iy) = (g.x.floor(), g.y.floor());
+        (ix >= 0.0 && iy >= 0.0 && (ix as usize) < self.width && (iy as usize) < self.height)
+            .then_some((ix as usize, iy as usize))
+    }
+
+    /// Whether `p` lies in a known-free cell (where starts and goals may go).
+    pub fn is_known_free(&self, p: Vec2) -> bool {
+        self.cell_of(p).is_some_and(|(x, y)| self.cell(x, y) == Cell::Free)
+    }
+
+    /// World-frame rectangle around the known-free cells.
+    pub fn free_bounds(&self) -> Rect {
+        self.bounds_of(|c| c == Cell::Free)
+    }
+
+    /// World-frame rectangle around the whole grid.
+    pub fn bounds(&self) -> Rect {
+        self.bounds_of(|_| true)
+    }
+
+    fn bounds_of(&self, keep: impl Fn(Cell) -> bool) -> Rect {
+        let (mut lo, mut hi) = ((usize::MAX, usize::MAX), (0, 0));
+        for iy in 0..self.height {
+            for ix in 0..self.width {
+                if keep(self.cell(ix, iy)) {
+                    lo = (lo.0.min(ix), lo.1.min(iy));
+                    hi = (hi.0.max(ix + 1), hi.1.max(iy + 1));
+                }
+            }
+        }
+        let r = self.resolution;
+        let corners = [(lo.0, lo.1), (hi.0, lo.1), (hi.0, hi.1), (lo.0, hi.1)]
+            .map(|(x, y)| self.origin.to_parent(Vec2::new(x as f32 * r, y as f32 * r)));
+        let min = corners.iter().fold(Vec2::splat(f32::INFINITY), |a, b| a.min(*b));
+        let max = corners.iter().fold(Vec2::splat(f32::NEG_INFINITY), |a, b| a.max(*b));
+        Rect { min, max }
+    }
+
+    /// Distance from grid point `g` (in cell units, grid frame) to cell `(ix, iy)`'s square.
+    #[inline]
+    fn cell_distance(g: Vec2, ix: usize, iy: usize) -> f32 {
+        let dx = (ix as f32 - g.x).max(g.x - (ix + 1) as f32).max(0.0);
+        let dy = (iy as f32 - g.y).max(g.y - (iy + 1) as f32).max(0.0);
+        dx.hypot(dy)
+    }
+
+    /// Lower bound (cells) on the distance from any point of cell `(ix, iy)` to a blocked cell.
+    #[inline]
+    fn free_radius(&self, ix: usize, iy: usize) -> f32 {
+        self.cheb[iy * self.width + ix].saturating_sub(1) as f32
+    }
+
+    /// Calls `f(ix, iy)` for every blocked cell whose square comes within `reach` cells of
+    /// grid point `g`; stops early when `f` returns true and reports whether it did.
+    fn any_blocked_near(&self, g: Vec2, reach: f32, mut f: impl FnMut(usize, usize) -> bool) -> bool {
+        let x0 = (g.x - reach).floor().max(0.0) as usize;
+        let y0 = (g.y - reach).floor().max(0.0) as usize;
+        let x1 = ((g.x + reach).floor() + 1.0).clamp(0.0, self.width as f32) as usize;
+        let y1 = ((g.y + reach).floor() + 1.0).clamp(0.0, self.height as f32) as usize;
+        for iy in y0..y1 {
+            for ix in x0..x1 {
+                if self.blocked[iy * self.width + ix] && Self::cell_distance(g, ix, iy) <= reach && f(ix, iy) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Distance from `p` to the nearest blocked cell (0 inside one; +inf if there is none).
+    pub fn clearance(&self, p: Vec2) -> f32 {
+        let g = self.origin.to_local(p) / self.resolution;
+        let mut reach = match self.cell_of(p) {
+            Some((ix, iy)) if self.is_blocked(ix, iy) => return 0.0,
+            Some((ix, iy)) => self.free_radius(ix, iy) + 2.0,
+            None => 4.0,
+        };
+        let limit = (self.width + self.height) as f32 + g.abs().max_element();
+        loop {
+            let mut best = f32::INFINITY;
+            self.any_blocked_near(g, reach, |ix, iy| {
+                best = best.min(Self::cell_distance(g, ix, iy));
+                false
+            });
+            if best.is_finite() {
+                return best * self.resolution;
+            }
+            if reach > limit {
+                return f32::INFINITY;
+            }
+            reach *= 2.0;
+        }
+    }
+
+    /// Whether every blocked cell is at least `min` metres from `p`.
+    pub fn is_clear(&self, p: Vec2, min: f32) -> bool {
+        let reach = min / self.resolution;
+        if let Some((ix, iy)) = self.cell_of(p) {
+            if self.is_blocked(ix, iy) {
+                return false;
+            }
+            if self.free_radius(ix, iy) >= reach {
+                return true;
+            }
+        }
+        let g = self.origin.to_local(p) / self.resolution;
+        // Strictly closer than `min` is a violation.
+        !self.any_blocked_near(g, reach, |ix, iy| Self::cell_distance(g, ix, iy) < reach)
+    }
+
+    /// Whether the footprint at `pose` touches or overlaps a blocked cell.
+    pub fn footprint_collides(&self, footprint: &Footprint, pose: &Pose2) -> bool {
+        let p = pose.position();
+        let reach = footprint.radius() / self.resolution;
+        if let Some((ix, iy)) = self.cell_of(p) {
+            if self.is_blocked(ix, iy) {
+                return true;
+            }
+            if self.free_radius(ix, iy) > reach {
+                return false;
+            }
+        }
+        let g = self.origin.to_local(p) / self.resolution;
+        if footprint.is_disc() {
+            return self.any_blocked_near(g, reach, |_, _| true);
+        }
+        let robot = pose.to_parry();
+        let half = 0.5 * self.resolution;
+        let square = Cuboid::new(Vec2::splat(half));
+        self.any_blocked_near(g, reach, |ix, iy| {
+            let c = self.origin.compose(&Pose2::new(
+                (ix as f32 + 0.5) * self.resolution,
+                (iy as f32 + 0.5) * self.resolution,
+                0.0,
+            ));
+            // Unsupported pairs count as contact: a surprise may stop a robot, never pass it.
+            intersection_test(&robot, footprint.shape(), &c.to_parry(), &square).map(|h| h.intersecting).unwrap_or(true)
+        })
+    }
+
+    /// Distance along the world-frame ray `origin + t * dir` (unit `dir`) to the first blocked
+    /// cell, or `limit` when there is none closer. A ray starting inside a blocked cell hits at 0.
+    pub fn cast(&self, origin: Vec2, dir: Vec2, limit: f32) -> f32 {
+        let inv_res = 1.0 / self.resolution;
+        let o = self.origin.to_local(origin) * inv_res;
+        let (s, c) = self.origin.yaw.sin_cos();
+        let d = Vec2::new(c * dir.x + s * dir.y, -s * dir.x + c * dir.y);
+        let limit_c = limit * inv_res;
+        let (w, h) = (self.width as f32, self.height as f32);
+        // Clip the ray to the grid rectangle (slab method).
+        let (mut t0, mut t1) = (0.0f32, limit_c);
+        for (oa, da, size) in [(o.x, d.x, w), (o.y, d.y, h)] {
+            if da.abs() < 1e-12 {
+                if oa < 0.0 || oa > size {
+                    return limit;
+                }
+            } else {
+                let (a, b) = ((0.0 - oa) / da, (size - oa) / da);
+                t0 = t0.max(a.min(b));
+                t1 = t1.min(a.max(b));
+            }
+        }
+        if t0 > t1 {
+            return limit;
+        }
+        let step_x: i64 = if d.x > 0.0 { 1 } else { -1 };
+        let step_y: i64 = if d.y > 0.0 { 1 } else { -1 };
+        let delta_x = if d.x != 0.0 { 1.0 / d.x.abs() } else { f32::INFINITY };
+        let delta_y = if d.y != 0.0 { 1.0 / d.y.abs() } else { f32::INFINITY };
+        let mut t = t0;
+        'restart: loop {
+            // (Re)start the cell walk at distance t.
+            let p = o + d * t;
+            // On a boundary, take the cell the ray is entering.
+            let cell_index = |v: f32, dv: f32, n: usize| {
+                let f = v.floor();
+                let i = if f == v && dv < 0.0 { f as i64 - 1 } else { f as i64 };
+                i.clamp(0, n as i64 - 1)
+            };
+            let mut ix = cell_index(p.x, d.x, self.width);
+            let mut iy = cell_index(p.y, d.y, self.height);
+            let next = |i: i64, step: i64, oa: f32, da: f32| {
+                if da == 0.0 {
+                    f32::INFINITY
+                } else {
+                    let boundary = if step > 0 { (i + 1) as f32 } else { i as f32 };
+                    (boundary - oa) / da
+                }
+            };
+            let mut tmax_x = next(ix, step_x, o.x, d.x);
+            let mut tmax_y = next(iy, step_y, o.y, d.y);
+            loop {
+                let k = iy as usize * self.width + ix as usize;
+                if self.blocked[k] {
+                    return (t * self.resolution).min(limit);
+                }
+                let free = self.cheb[k].saturating_sub(1);
+                if free >= 2 {
+                    // Everything within `free` cells of this cell is open: jump.
+                    t += free as f32;
+                    if t >= t1 {
+                        return limit;
+                    }
+                    continue 'restart;
+                }
+                if tmax_x < tmax_y {
+                    t = tmax_x;
+                    tmax_x += delta_x;
+                    ix += step_x;
+                    if ix < 0 || ix >= self.width as i64 {
+                        return limit;
+                    }
+                } else {
+                    t = tmax_y;
+                    tmax_y += delta_y;
+                    iy += step_y;
+                    if iy < 0 || iy >= self.height as i64 {
+                        return limit;
+                    }
+                }
+                if t >= t1 {
+                    return limit;
+                }
+            }
+        }
+    }
+}
+
+/// Occupancy from a probability, by the spec's thresholds.
+fn classify(p: f32, spec: &MapSpec) -> Cell {
+    if p > spec.occupied_thresh {
+        Cell::Occupied
+    } else if p < spec.free_thresh {
+        Cell::Free
+    } else {
+        Cell::Unknown
+    }
+}
+
+/// Chebyshev (chessboard) distance from every cell to the nearest blocked one, two passes.
+fn chebyshev_transform(blocked: &[bool], width: usize, height: usize) -> Vec<u32> {
+    const FAR: u32 = u32::MAX / 2;
+    let mut d: Vec<u32> = blocked.iter().map(|b| if *b { 0 } else { FAR }).collect();
+    let at = |x: usize, y: usize| y * width + x;
+    for y in 0..height {
+        for x in 0..width {
+            let mut v = d[at(x, y)];
+            if x > 0 {
+                v = v.min(d[at(x - 1, y)] + 1);
+            }
+            if y > 0 {
+                v = v.min(d[at(x, y - 1)] + 1);
+                if x > 0 {
+                    v = v.min(d[at(x - 1, y - 1)] + 1);
+                }
+                if x + 1 < width {
+                    v = v.min(d[at(x + 1, y - 1)] + 1);
+                }
+            }
+            d[at(x, y)] = v;
+        }
+    }
+    for y in (0..height).rev() {
+        for x in (0..width).rev() {
+            let mut v = d[at(x, y)];
+            if x + 1 < width {
+                v = v.min(d[at(x + 1, y)] + 1);
+            }
+            if y + 1 < height {
+                v = v.min(d[at(x, y + 1)] + 1);
+                if x + 1 < width {
+                    v = v.min(d[at(x + 1, y + 1)] + 1);
+                }
+                if x > 0 {
+                    v = v.min(d[at(x - 1, y + 1)] + 1);
+                }
+            }
+            d[at(x, y)] = v;
+        }
+    }
+    d
+}
+
+/// A scenario's reference to a map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapRef {
+    /// A shipped map's name or a `map_server` YAML path (relative to the scenario file).
+    pub file: String,
+    /// What unknown cells are (default `occupied`).
+    #[serde(default)]
+    pub unknown: UnknownCells,
+}

@@ -1,0 +1,303 @@
+//! Occupancy-grid maps: map_server semantics, exact grid ray casting (checked against boxes
+//! cast by the polygon caster and an f64 slab reference), clearance and collision, scenarios
+//! on maps, and the errors bad map files give.
+
+use proptest::prelude::*;
+use rand::{RngExt, SeedableRng};
+use rlnav_sim::geometry::{Obstacle, ObstacleSpec};
+use rlnav_sim::map::{Cell, OccupancyGrid, UnknownCells};
+use rlnav_sim::robot::FootprintSpec;
+use rlnav_sim::scenario::Scenario;
+use rlnav_sim::{Footprint, Lidar, LidarSpec, Pose2, ScenarioSpec, Vec2, World};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rlnav-maps-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn random_grid(seed: u64, w: usize, h: usize, fill: f64, res: f32, origin: Pose2) -> OccupancyGrid {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+    let cells = (0..w * h).map(|_| if rng.random_bool(fill) { Cell::Occupied } else { Cell::Free }).collect::<Vec<_>>();
+    OccupancyGrid::from_cells("test", w, h, res, origin, cells, UnknownCells::Occupied)
+}
+
+/// Every blocked cell as a box obstacle in world coordinates.
+fn cells_as_boxes(g: &OccupancyGrid) -> Vec<ObstacleSpec> {
+    let (w, h) = g.size();
+    let r = g.resolution();
+    let mut v = Vec::new();
+    for iy in 0..h {
+        for ix in 0..w {
+            if g.is_blocked(ix, iy) {
+                let c = g.origin().to_parent(Vec2::new((ix as f32 + 0.5) * r, (iy as f32 + 0.5) * r));
+                v.push(ObstacleSpec::Box { center: [c.x, c.y], size: [r, r], yaw: g.origin().yaw });
+            }
+        }
+    }
+    v
+}
+
+/// f64 slab test of a ray (grid frame, cell units) against every blocked cell.
+fn reference_cast(g: &OccupancyGrid, origin: Vec2, dir: Vec2, limit: f32) -> f32 {
+    let o = g.origin().to_local(origin) / g.resolution();
+    let (s, c) = g.origin().yaw.sin_cos();
+    let d = Vec2::new(c * dir.x + s * dir.y, -s * dir.x + c * dir.y);
+    let (ox, oy, dx, dy) = (o.x as f64, o.y as f64, d.x as f64, d.y as f64);
+    let (w, h) = g.size();
+    let mut best = limit as f64 / g.resolution() as f64;
+    for iy in 0..h {
+        for ix in 0..w {
+            if !g.is_blocked(ix, iy) {
+                continue;
+            }
+            let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+            for (oa, da, lo) in [(ox, dx, ix as f64), (oy, dy, iy as f64)] {
+                if da.abs() < 1e-12 {
+                    if oa < lo || oa > lo + 1.0 {
+                        t0 = f64::INFINITY;
+                    }
+                } else {
+                    let (a, b) = ((lo - oa) / da, (lo + 1.0 - oa) / da);
+                    t0 = t0.max(a.min(b));
+                    t1 = t1.min(a.max(b));
+                }
+            }
+            if t0 <= t1 && t0 < best {
+                best = t0;
+            }
+        }
+    }
+    (best * g.resolution() as f64) as f32
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(if std::env::var("CI").is_ok() { 64 } else { 256 }))]
+
+    #[test]
+    fn grid_cast_is_exact(seed in 0u64..1_000_000, fill in 0.01f64..0.3, yaw in -3.2f32..3.2,
+                          res in 0.03f32..0.2, ox in -1.0f32..1.0, oy in -1.0f32..1.0) {
+        let origin = Pose2::new(ox, oy, yaw);
+        let g = random_grid(seed, 40, 30, fill, res, origin);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed ^ 0xabc);
+        let limit = 60.0 * res;
+        for _ in 0..200 {
+            // Origins inside and outside the grid, any direction.
+            let local = Vec2::new(rng.random_range(-5.0..45.0), rng.random_range(-5.0..35.0)) * res;
+            let p = origin.to_parent(local);
+            if g.clearance(p) < 1e-4 {
+                // On a blocked cell's boundary the answer (0 or the far side) is a matter of
+                // convention; inside one, both give 0 (checked below).
+                if g.cell_of(p).is_some_and(|(x, y)| g.is_blocked(x, y)) {
+                    prop_assert_eq!(g.cast(p, Vec2::X, limit), 0.0);
+                }
+                continue;
+            }
+            let a: f32 = rng.random_range(-3.2..3.2);
+            let dir = Vec2::new(a.cos(), a.sin());
+            let fast = g.cast(p, dir, limit);
+            let slow = reference_cast(&g, p, dir, limit);
+            prop_assert!((fast - slow).abs() <= 2e-4 * limit.max(1.0), "fast {fast} reference {slow} at {p:?} dir {dir:?}");
+        }
+    }
+}
+
+#[test]
+fn lidar_on_a_grid_equals_lidar_on_the_same_cells_as_boxes() {
+    let origin = Pose2::new(-2.0, -1.5, 0.0);
+    let g = Arc::new(random_grid(7, 80, 60, 0.04, 0.05, origin));
+    let grid_world = World::with_grid(Vec::new(), g.clone());
+    let boxes = World::new(cells_as_boxes(&g).into_iter().map(|s| Obstacle::new(s).unwrap()).collect());
+    let lidar = Lidar::new(LidarSpec { beams: 720, range_max: 3.5, ..Default::default() });
+    let mut dirs = vec![Vec2::ZERO; 720];
+    let (mut a, mut b) = (vec![0.0; 720], vec![0.0; 720]);
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(1);
+    let mut compared = 0;
+    for _ in 0..50 {
+        let pose = Pose2::new(rng.random_range(-1.8..1.8), rng.random_range(-1.3..1.3), rng.random_range(-3.0..3.0));
+        if g.cell_of(pose.position()).is_some_and(|(x, y)| g.is_blocked(x, y)) {
+            continue;
+        }
+        lidar.scan(&pose, grid_world.ray_geometry(), &mut dirs, &mut a);
+        lidar.scan(&pose, boxes.ray_geometry(), &mut dirs, &mut b);
+        for (x, y) in a.iter().zip(&b) {
+            // Boxes meeting edge to edge may let a ray graze through a shared corner; the grid
+            // may not.
+            if x.is_finite() && y.is_finite() {
+                assert!((x - y).abs() < 1e-3 || x < y, "grid {x} boxes {y}");
+                compared += 1;
+            } else {
+                assert!(y.is_infinite() || *y > 3.3, "grid {x} boxes {y}");
+            }
+        }
+    }
+    assert!(compared > 10_000, "{compared}");
+}
+
+#[test]
+fn clearance_and_collision_match_brute_force() {
+    let origin = Pose2::new(0.3, -0.2, 0.4);
+    let g = random_grid(11, 50, 50, 0.03, 0.1, origin);
+    let boxes = World::new(cells_as_boxes(&g).into_iter().map(|s| Obstacle::new(s).unwrap()).collect());
+    let disc = Footprint::new(&FootprintSpec::Circle { radius: 0.17 }).unwrap();
+    let rect = Footprint::new(&FootprintSpec::Polygon(vec![[-0.3, -0.15], [0.25, -0.15], [0.25, 0.15], [-0.3, 0.15]]))
+        .unwrap();
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(2);
+    let (mut hits, mut misses) = (0, 0);
+    for _ in 0..3000 {
+        let p = origin.to_parent(Vec2::new(rng.random_range(-1.0..6.0), rng.random_range(-1.0..6.0)));
+        let c = g.clearance(p);
+        let reference = boxes.clearance(p).max(0.0);
+        assert!((c - reference).abs() < 1e-4, "clearance {c} reference {reference} at {p:?}");
+        let m = rng.random_range(0.0..0.6);
+        assert_eq!(g.is_clear(p, m), reference >= m || (reference - m).abs() < 1e-5, "is_clear({m}) at {c}");
+        let pose = Pose2::new(p.x, p.y, rng.random_range(-3.0..3.0));
+        for fp in [&disc, &rect] {
+            let hit = g.footprint_collides(fp, &pose);
+            assert_eq!(hit, boxes.footprint_collides(fp, &pose), "{pose:?}");
+            if hit { hits += 1 } else { misses += 1 }
+        }
+    }
+    assert!(hits > 500 && misses > 500, "{hits} hits, {misses} misses");
+}
+
+#[test]
+fn warehouse_map_loads_with_map_server_semantics() {
+    let g = OccupancyGrid::load("warehouse", UnknownCells::Occupied).unwrap();
+    assert_eq!(g.size(), (260, 200));
+    assert_eq!(g.resolution(), 0.05);
+    // Outside the building is unknown (205), the floor free (254), walls occupied (0).
+    assert_eq!(g.cell(2, 2), Cell::Unknown);
+    let centre = g.cell_of(Vec2::new(-4.0, 0.0)).unwrap();
+    assert_eq!(g.cell(centre.0, centre.1), Cell::Free);
+    let wall = g.cell_of(Vec2::new(-5.95, 0.0)).unwrap();
+    assert_eq!(g.cell(wall.0, wall.1), Cell::Occupied);
+    let b = g.free_bounds();
+    assert!((b.min.x + 5.85).abs() < 0.051 && (b.max.y - 4.35).abs() < 0.051, "{b:?}");
+    // The lidar sees the west wall 1.85 m away (wall face at x = -5.85).
+    let world = World::with_grid(Vec::new(), Arc::new(g));
+    let lidar = Lidar::new(LidarSpec { beams: 4, range_max: 10.0, ..Default::default() });
+    let (mut dirs, mut out) = (vec![Vec2::ZERO; 4], vec![0.0; 4]);
+    lidar.scan(&Pose2::new(-4.0, 0.0, 0.0), world.ray_geometry(), &mut dirs, &mut out);
+    assert!((out[0] - 1.85).abs() < 1e-4, "{out:?}");
+}
+
+#[test]
+fn map_scenario_places_episodes_in_known_free_space() {
+    let spec = ScenarioSpec::load("warehouse").unwrap();
+    let s = Scenario::new(spec, 0.2, 0.2).unwrap();
+    let g = s.grid().unwrap().clone();
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(4);
+    for _ in 0..100 {
+        let e = s.sample(&mut rng).unwrap();
+        for p in [e.start.position(), e.goal] {
+            assert!(g.is_known_free(p));
+            assert!(e.world.clearance(p) >= s.clearance() - 1e-5);
+        }
+    }
+}
+
+fn write_map(dir: &std::path::Path, yaml: &str, image: Option<(&str, &[u8])>) -> PathBuf {
+    if let Some((name, bytes)) = image {
+        std::fs::write(dir.join(name), bytes).unwrap();
+    }
+    let p = dir.join("map.yaml");
+    std::fs::write(&p, yaml).unwrap();
+    p
+}
+
+fn pgm(w: usize, h: usize, px: impl Fn(usize, usize) -> u8) -> Vec<u8> {
+    let mut v = format!("P5\n{w} {h}\n255\n").into_bytes();
+    for y in 0..h {
+        for x in 0..w {
+            v.push(px(x, y));
+        }
+    }
+    v
+}
+
+#[test]
+fn negate_modes_png_and_rows() {
+    let dir = tmpdir("modes");
+    // Black square in the top-left pixel, white elsewhere, grey 205 in the bottom-right.
+    let image = pgm(4, 3, |x, y| match (x, y) {
+        (0, 0) => 0,
+        (3, 2) => 205,
+        _ => 254,
+    });
+    let yaml = "image: m.pgm\nresolution: 0.5\norigin: [1.0, 2.0, 0.0]\nfree_thresh: 0.196\n";
+    let g = OccupancyGrid::load_file(&write_map(&dir, yaml, Some(("m.pgm", &image))), UnknownCells::Free).unwrap();
+    // Image row 0 is the top: grid row 2.
+    assert_eq!(g.cell(0, 2), Cell::Occupied);
+    assert_eq!(g.cell(3, 0), Cell::Unknown);
+    assert_eq!(g.cell(1, 1), Cell::Free);
+    assert_eq!(g.cell_of(Vec2::new(1.2, 3.4)), Some((0, 2)));
+    assert!(!g.is_blocked(3, 0), "unknown counts as free when asked");
+    let negated = yaml.to_string() + "negate: 1\n";
+    let g = OccupancyGrid::load_file(&write_map(&dir, &negated, None), UnknownCells::Occupied).unwrap();
+    assert_eq!(g.cell(0, 2), Cell::Free);
+    assert_eq!(g.cell(1, 1), Cell::Occupied);
+    // The same picture as PNG.
+    let mut png = Vec::new();
+    image::DynamicImage::ImageLuma8(image::GrayImage::from_fn(4, 3, |x, y| {
+        image::Luma([if (x, y) == (0, 0) { 0 } else { 254 }])
+    }))
+    .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+    .unwrap();
+    let yaml = "image: m.png\nresolution: 0.5\norigin: [0, 0, 0]\nmode: trinary\n";
+    let g = OccupancyGrid::load_file(&write_map(&dir, yaml, Some(("m.png", &png))), UnknownCells::Occupied).unwrap();
+    assert_eq!(g.cell(0, 2), Cell::Occupied);
+    assert_eq!(g.cell(2, 0), Cell::Free);
+    // Raw: the value is the occupancy in percent.
+    let raw = pgm(2, 1, |x, _| [0, 100][x]);
+    let yaml = "image: r.pgm\nresolution: 1\norigin: [0, 0, 0]\nmode: raw\n";
+    let g = OccupancyGrid::load_file(&write_map(&dir, yaml, Some(("r.pgm", &raw))), UnknownCells::Occupied).unwrap();
+    assert_eq!((g.cell(0, 0), g.cell(1, 0)), (Cell::Free, Cell::Occupied));
+}
+
+#[test]
+fn bad_maps_are_clear_errors() {
+    let dir = tmpdir("bad");
+    let err = |yaml: &str, image: Option<(&str, &[u8])>| {
+        OccupancyGrid::load_file(&write_map(&dir, yaml, image), UnknownCells::Occupied).unwrap_err().to_string()
+    };
+    let e = err("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", None);
+    assert!(e.contains("map.yaml") && e.contains("`image`") && e.contains("missing.pgm"), "{e}");
+    let e = err("image: junk.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", Some(("junk.pgm", b"not an image at all")));
+    assert!(e.contains("`image`") && e.contains("junk.pgm"), "{e}");
+    let truncated = &pgm(10, 10, |_, _| 254)[..40];
+    let e = err("image: cut.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", Some(("cut.pgm", truncated)));
+    assert!(e.contains("decodable") && e.contains("cut.pgm"), "{e}");
+    // Consistent file, inconsistent YAML: every pixel black with negate 0 leaves nothing free.
+    let black = pgm(5, 5, |_, _| 0);
+    let e = err("image: black.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", Some(("black.pgm", &black)));
+    assert!(e.contains("none of") && e.contains("negate"), "{e}");
+    let e = err("image: black.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nfree_thresh: 0.9\n", None);
+    assert!(e.contains("`free_thresh`") && e.contains("less than occupied_thresh"), "{e}");
+    let e = err("image: black.pgm\nresolution: -1\norigin: [0, 0, 0]\n", None);
+    assert!(e.contains("`resolution`"), "{e}");
+    let e = err("image: black.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 2\n", None);
+    assert!(e.contains("`negate`") && e.contains("0 or 1"), "{e}");
+    let e = err("image: black.pgm\nresolution: 0.05\n", None);
+    assert!(e.contains("origin"), "{e}");
+    let e = OccupancyGrid::load("no-such-map", UnknownCells::Occupied).unwrap_err().to_string();
+    assert!(e.contains("unknown map `no-such-map`") && e.contains("warehouse"), "{e}");
+    // A scenario pointing at a map relative to itself.
+    let sdir = tmpdir("scen");
+    std::fs::write(
+        sdir.join("m.pgm"),
+        pgm(40, 40, |x, y| if x == 0 || y == 0 || x == 39 || y == 39 { 0 } else { 254 }),
+    )
+    .unwrap();
+    std::fs::write(sdir.join("m.yaml"), "image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n").unwrap();
+    let scen = sdir.join("s.yaml");
+    std::fs::write(&scen, "name: s\nmap: {file: m.yaml}\nstart_goal_distance: [0.5, 2]\n").unwrap();
+    let spec = ScenarioSpec::load(scen.to_str().unwrap()).unwrap();
+    assert!(Scenario::new(spec, 0.2, 0.0).is_ok());
+    std::fs::write(&scen, "name: s\nmap: {file: nothere.yaml}\n").unwrap();
+    let spec = ScenarioSpec::load(scen.to_str().unwrap()).unwrap();
+    let e = Scenario::new(spec, 0.2, 0.0).unwrap_err().to_string();
+    assert!(e.contains("nothere.yaml"), "{e}");
+}
