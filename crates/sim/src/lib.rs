@@ -7,6 +7,7 @@
 //! - [`map`]: occupancy-grid maps in the ROS `map_server` format, cast exactly and fast;
 //! - [`lidar`]: [`LidarSpec`] and the ray caster (a culled hot loop, checked against parry2d);
 //! - [`robot`]: [`RobotSpec`] presets and [`DiffDrive`] kinematics;
+//! - [`barn`]: the BARN Challenge worlds as scenarios, and the challenge's score;
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
 //! - [`task`]: the navigation task (observation layout, action scaling, reward, termination);
 //! - [`vec_env`]: [`VecEnv`], N environments stepped in parallel;
@@ -29,6 +30,7 @@
 //! # Ok::<(), rlnav_sim::task::SimError>(())
 //! ```
 
+pub mod barn;
 pub mod config;
 pub mod controller;
 pub mod geometry;

@@ -14,6 +14,7 @@ pub const ROBOT_PRESETS: &[(&str, &str)] = &[
     ("turtlebot3-burger", include_str!("../../../robots/turtlebot3-burger.yaml")),
     ("turtlebot3-waffle", include_str!("../../../robots/turtlebot3-waffle.yaml")),
     ("turtlebot4-lite", include_str!("../../../robots/turtlebot4-lite.yaml")),
+    ("jackal", include_str!("../../../robots/jackal.yaml")),
 ];
 
 /// The robot's outline seen from above, in `base_link`.

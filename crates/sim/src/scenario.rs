@@ -286,8 +286,12 @@ impl Validate for ScenarioSpec {
 }
 
 impl ScenarioSpec {
-    /// A shipped scenario by name, or a YAML file by path.
+    /// A shipped scenario by name, a YAML file by path, or one BARN world
+    /// (`barn_worlds.json#world_N`).
     pub fn load(name_or_path: &str) -> Result<Self, ConfigError> {
+        if name_or_path.contains(".json") {
+            return crate::barn::load_world_spec(name_or_path);
+        }
         let mut spec: Self = preset_or_file("scenario", SCENARIO_PRESETS, name_or_path)?;
         if !SCENARIO_PRESETS.iter().any(|(n, _)| *n == name_or_path) {
             spec.base_dir = Some(Path::new(name_or_path).parent().unwrap_or(Path::new(".")).to_path_buf());

@@ -1,0 +1,181 @@
+//! The BARN Challenge worlds (Benchmark for Autonomous Robot Navigation) as scenarios.
+//!
+//! The data file (`barn_worlds.json`, converted from the public challenge repository) holds
+//! every world's cylinders, the reference path length and the "optimal time" the challenge's
+//! score uses. Each world becomes a [`ScenarioSpec`] for the `jackal` preset: the fixed start
+//! pose, the fixed goal, the cylinders. A scenario name `FILE.json#world_N` loads one world.
+
+use crate::config::{ConfigError, Invalid, Validate};
+use crate::geometry::{ObstacleSpec, Pose2};
+use crate::scenario::{Placement, ScenarioSpec};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+#[derive(Deserialize)]
+struct BarnFile {
+    about: About,
+    worlds: BTreeMap<String, Entry>,
+}
+
+#[derive(Deserialize)]
+struct About {
+    cylinder_radius_m: f32,
+    start: StartPose,
+    goal: GoalPoint,
+    success_radius_m: f32,
+    time_limit_s: f32,
+}
+
+#[derive(Deserialize)]
+struct StartPose {
+    x: f32,
+    y: f32,
+    yaw: f32,
+}
+
+#[derive(Deserialize)]
+struct GoalPoint {
+    x: f32,
+    y: f32,
+}
+
+#[derive(Deserialize)]
+struct Entry {
+    cylinders: Vec<[f32; 2]>,
+    optimal_time_s: f32,
+    reference_path_length_m: f32,
+}
+
+/// One BARN world as a scenario, with what the challenge's score needs.
+#[derive(Clone, Debug)]
+pub struct BarnWorld {
+    /// `world_N`.
+    pub name: String,
+    /// `N`.
+    pub index: u32,
+    /// The scenario (robot `jackal`, fixed start and goal, the cylinders).
+    pub spec: ScenarioSpec,
+    /// Reference path length / 2 m/s (s).
+    pub optimal_time: f32,
+    /// Reference path length (m).
+    pub path_length: f32,
+}
+
+/// The worlds of a BARN data file and the challenge's rules.
+#[derive(Clone, Debug)]
+pub struct BarnSet {
+    /// Worlds in index order.
+    pub worlds: Vec<BarnWorld>,
+    /// A run succeeds within this distance of the goal (m).
+    pub success_radius: f32,
+    /// Time limit per run (s).
+    pub time_limit: f32,
+}
+
+impl BarnSet {
+    /// Reads a BARN data file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { file: file.clone(), source })?;
+        let data: BarnFile = serde_json::from_str(&text)
+            .map_err(|e| ConfigError::Parse { file: file.clone(), message: e.to_string() })?;
+        let a = &data.about;
+        let invalid = |key: &str, expected: &str| Invalid::new(key, expected).in_file(&file);
+        if !(a.cylinder_radius_m > 0.0 && a.success_radius_m > 0.0 && a.time_limit_s > 0.0) {
+            return Err(invalid("about", "positive cylinder_radius_m, success_radius_m and time_limit_s"));
+        }
+        if data.worlds.is_empty() {
+            return Err(invalid("worlds", "at least one world"));
+        }
+        let start = Pose2::new(a.start.x, a.start.y, a.start.yaw);
+        let goal = [a.goal.x, a.goal.y];
+        let straight = (goal[0] - start.x).hypot(goal[1] - start.y);
+        let mut worlds = Vec::with_capacity(data.worlds.len());
+        for (name, e) in &data.worlds {
+            let index = name
+                .strip_prefix("world_")
+                .and_then(|n| n.parse().ok())
+                .ok_or_else(|| invalid(&format!("worlds.{name}"), "world names `world_N`"))?;
+            let spec = ScenarioSpec {
+                name: format!("barn-{name}"),
+                description: format!("BARN Challenge {name}: {} cylinders", e.cylinders.len()),
+                robot: "jackal".into(),
+                arena: None,
+                obstacles: e
+                    .cylinders
+                    .iter()
+                    .map(|c| ObstacleSpec::Circle { center: *c, radius: a.cylinder_radius_m })
+                    .collect(),
+                procedural: None,
+                start: Placement::Poses(vec![start]),
+                goal: Placement::Points(vec![goal]),
+                start_goal_distance: [0.0, straight + 1.0],
+                margin: 0.0,
+                goal_motion: None,
+                movers: Vec::new(),
+                map: None,
+                // BARN guarantees a path for the Jackal's rectangle, through gaps its
+                // circumscribed circle would not pass.
+                require_path: false,
+                base_dir: None,
+            };
+            spec.validate().map_err(|err| err.under(&format!("worlds.{name}")).in_file(&file))?;
+            if !(e.optimal_time_s > 0.0 && e.reference_path_length_m > 0.0) {
+                return Err(invalid(&format!("worlds.{name}"), "positive optimal_time_s and reference_path_length_m"));
+            }
+            worlds.push(BarnWorld {
+                name: name.clone(),
+                index,
+                spec,
+                optimal_time: e.optimal_time_s,
+                path_length: e.reference_path_length_m,
+            });
+        }
+        worlds.sort_by_key(|w| w.index);
+        Ok(Self { worlds, success_radius: a.success_radius_m, time_limit: a.time_limit_s })
+    }
+
+    /// One world by name (`world_N`).
+    pub fn world(&self, name: &str) -> Option<&BarnWorld> {
+        self.worlds.iter().find(|w| w.name == name)
+    }
+}
+
+/// The BARN Challenge score of one run: `success * optimal / clip(time, 2 optimal, 8 optimal)`.
+pub fn barn_score(success: bool, time: f32, optimal_time: f32) -> f32 {
+    if !success {
+        return 0.0;
+    }
+    optimal_time / time.clamp(2.0 * optimal_time, 8.0 * optimal_time)
+}
+
+/// Loads `FILE.json#world_N` as a scenario.
+pub fn load_world_spec(reference: &str) -> Result<ScenarioSpec, ConfigError> {
+    let (path, world) = reference.split_once('#').unwrap_or((reference, ""));
+    let set = BarnSet::load(Path::new(path))?;
+    match set.world(world) {
+        Some(w) => Ok(w.spec.clone()),
+        None => Err(ConfigError::Invalid {
+            file: path.to_string(),
+            key: "worlds".into(),
+            expected: format!(
+                "a world named after `#` (`{path}#world_1`); `{world}` is not one of its {} worlds",
+                set.worlds.len()
+            ),
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn score_clips_like_the_challenge() {
+        assert_eq!(barn_score(false, 10.0, 5.0), 0.0);
+        assert_eq!(barn_score(true, 5.0, 5.0), 0.5, "faster than 2x optimal counts as 2x");
+        assert_eq!(barn_score(true, 20.0, 5.0), 0.25);
+        assert_eq!(barn_score(true, 100.0, 5.0), 0.125, "slower than 8x optimal counts as 8x");
+    }
+}
