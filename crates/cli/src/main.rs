@@ -94,6 +94,27 @@ enum Command {
     },
     /// List the shipped scenarios and robots.
     List,
+    /// Robot files.
+    Robot {
+        #[command(subcommand)]
+        command: RobotCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum RobotCommand {
+    /// Make a robot file from a URDF: drive wheels, footprint, lidar mount (and the lidar's
+    /// beams and ranges from a Gazebo ray sensor); prints what it found and what it defaulted.
+    Import {
+        /// The URDF (xacro must be expanded first).
+        urdf: PathBuf,
+        /// Robot YAML to write (default: print it).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Robot name (default: the URDF's).
+        #[arg(long)]
+        name: Option<String>,
+    },
 }
 
 #[derive(clap::Args)]
@@ -154,6 +175,7 @@ fn run(cli: Cli) -> Result<()> {
             println!("wrote {}", path.display());
             Ok(())
         }
+        Command::Robot { command: RobotCommand::Import { urdf, out, name } } => robot_import(&urdf, out, name),
         Command::List => {
             println!("scenarios:");
             for (name, _) in SCENARIO_PRESETS {
@@ -349,5 +371,30 @@ fn train(
         );
     }
     println!("run folder: {}", out.display());
+    Ok(())
+}
+
+fn robot_import(urdf: &std::path::Path, out: Option<PathBuf>, name: Option<String>) -> Result<()> {
+    let mut imp = rlnav_sim::urdf::import_urdf_file(urdf)?;
+    if let Some(n) = name {
+        imp.robot.name = n;
+    }
+    for f in &imp.found {
+        eprintln!("found: {f}");
+    }
+    for d in &imp.defaults {
+        eprintln!("DEFAULT (check it): {d}");
+    }
+    let yaml = imp.to_yaml(&urdf.display().to_string());
+    match out {
+        Some(path) => {
+            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            }
+            std::fs::write(&path, yaml).with_context(|| format!("writing {}", path.display()))?;
+            eprintln!("wrote {} (use it with --robot {})", path.display(), path.display());
+        }
+        None => print!("{yaml}"),
+    }
     Ok(())
 }

@@ -150,8 +150,32 @@ pub fn preset_or_file<T: DeserializeOwned + Validate>(
 
 /// A value as a YAML tree, enums written as one-key maps (the form [`from_yaml_str`] reads).
 pub fn to_yaml_value<T: serde::Serialize>(value: &T) -> serde_norway::Value {
-    serde_norway::with::singleton_map_recursive::serialize(value, serde_norway::value::Serializer)
-        .expect("configuration types serialise to YAML")
+    let mut v = serde_norway::with::singleton_map_recursive::serialize(value, serde_norway::value::Serializer)
+        .expect("configuration types serialise to YAML");
+    shortest_floats(&mut v);
+    v
+}
+
+/// Writes numbers that are exactly f32 values in f32's shortest form (`0.033`, not
+/// `0.032999999821186066`); they read back to the same f32.
+fn shortest_floats(v: &mut serde_norway::Value) {
+    use serde_norway::Value;
+    match v {
+        Value::Number(n) => {
+            if let Some(f) = n.as_f64().filter(|_| n.is_f64()) {
+                let g = f as f32;
+                if g as f64 == f {
+                    if let Ok(short) = format!("{g}").parse::<f64>() {
+                        *v = Value::Number(short.into());
+                    }
+                }
+            }
+        }
+        Value::Sequence(s) => s.iter_mut().for_each(shortest_floats),
+        Value::Mapping(m) => m.iter_mut().for_each(|(_, x)| shortest_floats(x)),
+        Value::Tagged(t) => shortest_floats(&mut t.value),
+        _ => {}
+    }
 }
 
 /// A value as YAML text, enums written as one-key maps (the form [`from_yaml_str`] reads).

@@ -6,7 +6,7 @@
 //! - [`world`]: a static world (walls and obstacles), footprint collision and clearance;
 //! - [`map`]: occupancy-grid maps in the ROS `map_server` format, cast exactly and fast;
 //! - [`lidar`]: [`LidarSpec`] and the ray caster (a culled hot loop, checked against parry2d);
-//! - [`robot`]: [`RobotSpec`] presets and [`DiffDrive`] kinematics;
+//! - [`robot`]: [`RobotSpec`] presets and [`DiffDrive`] kinematics; [`urdf`]: robots from URDF;
 //! - [`barn`]: the BARN Challenge worlds as scenarios, and the challenge's score;
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
 //! - [`task`]: the navigation task (observation layout, action scaling, reward, termination);
@@ -41,6 +41,7 @@ pub mod reachability;
 pub mod robot;
 pub mod scenario;
 pub mod task;
+pub mod urdf;
 pub mod vec_env;
 pub mod world;
 

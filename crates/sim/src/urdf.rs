@@ -1,0 +1,518 @@
+//! Robots from URDF: the two drive wheels (radius and separation), the footprint from the
+//! base link's collision geometry, the lidar's mount pose (and its beams and ranges when the
+//! file carries a Gazebo ray sensor), and the speed limits the wheel joints state.
+//!
+//! Parsing is `urdf-rs`'s; this module reads the kinematic tree. It reports what it found and
+//! every default it had to use, so that a user knows which numbers to check. xacro is out of
+//! scope: expand it first (`xacro model.urdf.xacro > model.urdf`).
+
+use crate::config::Validate;
+use crate::geometry::{Pose2, convex_ccw};
+use crate::lidar::LidarSpec;
+use crate::robot::{FootprintSpec, RobotSpec};
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use std::path::Path;
+use urdf_rs::{Geometry, JointType};
+
+/// Why a URDF could not become a robot.
+#[derive(Debug, thiserror::Error)]
+pub enum UrdfError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {source}")]
+    Io {
+        /// The file.
+        file: String,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// A xacro file.
+    #[error("{file}: this is a xacro file; expand it first (`xacro {file} > model.urdf`), xacro is out of scope")]
+    Xacro {
+        /// The file.
+        file: String,
+    },
+    /// Not valid URDF XML.
+    #[error("{file}: not a valid URDF: {message}")]
+    Parse {
+        /// The file.
+        file: String,
+        /// The parser's message.
+        message: String,
+    },
+    /// A URDF that does not describe a differential-drive robot rlnav can use.
+    #[error("{file}: {message}")]
+    Unusable {
+        /// The file.
+        file: String,
+        /// What is missing and what was seen.
+        message: String,
+    },
+}
+
+/// What came out of an import.
+#[derive(Clone, Debug)]
+pub struct UrdfImport {
+    /// The robot, ready to save as YAML.
+    pub robot: RobotSpec,
+    /// What was read from the file (one line each).
+    pub found: Vec<String>,
+    /// What the file did not say and which default was used (one line each).
+    pub defaults: Vec<String>,
+}
+
+impl UrdfImport {
+    /// The robot as a YAML file, with what was found and defaulted as comments on top.
+    pub fn to_yaml(&self, source: &str) -> String {
+        let mut s = format!("# Imported from {source} by `rlnav robot import`.\n");
+        for f in &self.found {
+            s += &format!("# found: {f}\n");
+        }
+        for d in &self.defaults {
+            s += &format!("# DEFAULT (check it): {d}\n");
+        }
+        s + &crate::config::to_yaml_string(&self.robot)
+    }
+}
+
+/// A rigid 3D transform (rotation matrix, translation), enough for URDF joint origins.
+#[derive(Clone, Copy, Debug)]
+struct Tf {
+    r: [[f64; 3]; 3],
+    t: [f64; 3],
+}
+
+impl Tf {
+    const IDENTITY: Tf = Tf { r: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], t: [0.0; 3] };
+
+    /// URDF origin: translation `xyz`, fixed-axis roll, pitch, yaw (R = Rz·Ry·Rx).
+    fn from_origin(p: &urdf_rs::Pose) -> Tf {
+        let [roll, pitch, yaw] = p.rpy.0;
+        let (sr, cr) = roll.sin_cos();
+        let (sp, cp) = pitch.sin_cos();
+        let (sy, cy) = yaw.sin_cos();
+        let r = [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ];
+        Tf { r, t: p.xyz.0 }
+    }
+
+    fn then(&self, child: &Tf) -> Tf {
+        let mut r = [[0.0; 3]; 3];
+        for (i, row) in r.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = (0..3).map(|k| self.r[i][k] * child.r[k][j]).sum();
+            }
+        }
+        Tf { r, t: self.apply(child.t) }
+    }
+
+    fn rotate(&self, v: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|i| (0..3).map(|k| self.r[i][k] * v[k]).sum())
+    }
+
+    fn apply(&self, v: [f64; 3]) -> [f64; 3] {
+        let r = self.rotate(v);
+        [r[0] + self.t[0], r[1] + self.t[1], r[2] + self.t[2]]
+    }
+
+    /// Planar yaw of the frame's x axis.
+    fn yaw(&self) -> f64 {
+        self.r[1][0].atan2(self.r[0][0])
+    }
+}
+
+/// Link names that mark a lidar, most specific first.
+const LIDAR_NAMES: &[&str] = &["lidar", "laser", "scan", "hokuyo", "rplidar", "lds", "velodyne", "sick"];
+
+/// Reads a URDF file.
+pub fn import_urdf_file(path: &Path) -> Result<UrdfImport, UrdfError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|source| UrdfError::Io { file: file.clone(), source })?;
+    import_urdf(&file, &text)
+}
+
+/// Reads URDF text (`file` names it in messages).
+pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
+    if file.ends_with(".xacro") || text.contains("xmlns:xacro") || text.contains("<xacro:") {
+        return Err(UrdfError::Xacro { file: file.to_string() });
+    }
+    let model =
+        urdf_rs::read_from_string(text).map_err(|e| UrdfError::Parse { file: file.into(), message: e.to_string() })?;
+    let unusable = |message: String| UrdfError::Unusable { file: file.to_string(), message };
+    if model.links.is_empty() {
+        return Err(unusable("no <link> elements".into()));
+    }
+    let mut found = Vec::new();
+    let mut defaults = Vec::new();
+
+    // The tree: each link's pose in the root link's frame.
+    let parent_of: HashMap<&str, &urdf_rs::Joint> = model.joints.iter().map(|j| (j.child.link.as_str(), j)).collect();
+    let root = model
+        .links
+        .iter()
+        .find(|l| !parent_of.contains_key(l.name.as_str()))
+        .ok_or_else(|| unusable("no root link (every link is some joint's child)".into()))?;
+    let mut in_root: HashMap<&str, Tf> = HashMap::new();
+    in_root.insert(root.name.as_str(), Tf::IDENTITY);
+    // Joints may come in any order; resolve until nothing changes.
+    for _ in 0..model.joints.len() + 1 {
+        let mut changed = false;
+        for j in &model.joints {
+            if in_root.contains_key(j.child.link.as_str()) {
+                continue;
+            }
+            if let Some(p) = in_root.get(j.parent.link.as_str()).copied() {
+                in_root.insert(j.child.link.as_str(), p.then(&Tf::from_origin(&j.origin)));
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    // base_link is the robot frame by ROS convention (REP-105); otherwise the root.
+    let base_name = if in_root.contains_key("base_link") { "base_link" } else { root.name.as_str() };
+    let base_inv = invert(in_root[base_name]);
+    let pose_in_base = |link: &str| in_root.get(link).map(|t| base_inv.then(t));
+    found.push(format!("robot frame `{base_name}` (root link `{}`)", root.name));
+
+    // Drive wheels: continuous joints (or revolute without limits) turning about the lateral
+    // axis, whose child link is a cylinder.
+    let link = |name: &str| model.links.iter().find(|l| l.name == name);
+    let mut continuous = Vec::new();
+    let mut wheels = Vec::new();
+    for j in &model.joints {
+        let spins = j.joint_type == JointType::Continuous
+            || (j.joint_type == JointType::Revolute && !(j.limit.upper - j.limit.lower).is_finite());
+        if !spins {
+            continue;
+        }
+        continuous.push(j.name.clone());
+        let Some(tf) = pose_in_base(&j.child.link) else { continue };
+        let axis = tf.rotate(normalize(j.axis.xyz.0));
+        let geometry = link(&j.child.link).and_then(|l| {
+            l.collision
+                .iter()
+                .map(|c| &c.geometry)
+                .chain(l.visual.iter().map(|v| &v.geometry))
+                .find_map(|g| if let Geometry::Cylinder { radius, .. } = g { Some(*radius) } else { None })
+        });
+        match geometry {
+            Some(radius) if axis[1].abs() > 0.9 => wheels.push((j, tf.t, radius)),
+            _ => {}
+        }
+    }
+    let left: Vec<_> = wheels.iter().filter(|w| w.1[1] > 1e-3).collect();
+    let right: Vec<_> = wheels.iter().filter(|w| w.1[1] < -1e-3).collect();
+    if left.is_empty() || right.is_empty() {
+        return Err(unusable(format!(
+            "no pair of drive wheels: expected two continuous joints turning about the robot's \
+             lateral (y) axis, with cylinder geometry, one left and one right of `{base_name}`; \
+             continuous joints seen: [{}], of which wheels: [{}]",
+            continuous.join(", "),
+            wheels.iter().map(|w| format!("{} at y = {:.3}", w.0.name, w.1[1])).collect::<Vec<_>>().join(", ")
+        )));
+    }
+    // The pair on the most common axle: for each left wheel, the right wheel closest in x.
+    let (l, r) = left
+        .iter()
+        .flat_map(|l| right.iter().map(move |r| (*l, *r)))
+        .min_by(|a, b| (a.0.1[0] - a.1.1[0]).abs().total_cmp(&(b.0.1[0] - b.1.1[0]).abs()))
+        .expect("both sides are non-empty");
+    let wheel_radius = 0.5 * (l.2 + r.2);
+    let wheel_separation = l.1[1] - r.1[1];
+    found.push(format!(
+        "drive wheels `{}` and `{}`: radius {wheel_radius:.4} m, separation {wheel_separation:.4} m",
+        l.0.name, r.0.name
+    ));
+    if left.len() + right.len() > 2 {
+        found.push(format!(
+            "{} wheels in all: treated as skid steer with the track of the nearest left/right pair",
+            left.len() + right.len()
+        ));
+    }
+
+    // Speed limits from the wheel joints' <limit velocity>.
+    let velocity = [l.0.limit.velocity, r.0.limit.velocity];
+    let max_wheel_speed = if velocity.iter().all(|v| v.is_finite() && *v > 0.0) {
+        let v = velocity[0].min(velocity[1]);
+        found.push(format!("wheel speed limit {v:.3} rad/s (joint <limit velocity>)"));
+        v
+    } else {
+        let v = 0.5 / wheel_radius;
+        defaults.push(format!(
+            "wheel speed limit {v:.3} rad/s (0.5 m/s at the wheel): the wheel joints give no <limit velocity>"
+        ));
+        v
+    };
+    let max_linear = max_wheel_speed * wheel_radius;
+    let max_angular = 2.0 * max_linear / wheel_separation;
+    defaults.push("accelerations 1.0 m/s² and 3.0 rad/s² (URDF has no acceleration limits)".into());
+
+    // Footprint: the base link's collision shapes, or, failing that, those of links fixed to it.
+    let mut outline: Vec<[f64; 2]> = Vec::new();
+    let mut used = Vec::new();
+    let fixed_to_base: Vec<&str> = model
+        .joints
+        .iter()
+        .filter(|j| j.joint_type == JointType::Fixed && j.parent.link == base_name)
+        .map(|j| j.child.link.as_str())
+        .filter(|c| !LIDAR_NAMES.iter().any(|n| c.to_lowercase().contains(n)))
+        .collect();
+    for candidates in [vec![base_name], fixed_to_base, vec![root.name.as_str()]] {
+        for name in candidates {
+            let (Some(l), Some(tf)) = (link(name), pose_in_base(name)) else { continue };
+            for c in &l.collision {
+                let t = tf.then(&Tf::from_origin(&c.origin));
+                let pts = shape_outline(&c.geometry, &t);
+                if !pts.is_empty() {
+                    outline.extend(pts);
+                    used.push(name.to_string());
+                }
+            }
+        }
+        if !outline.is_empty() {
+            break;
+        }
+    }
+    used.dedup();
+    let footprint = if outline.is_empty() {
+        // The wheels' extent: a rectangle around both wheels.
+        let half_w = 0.5 * wheel_separation + 0.02;
+        let half_l = wheel_radius.max(0.05);
+        defaults.push(format!(
+            "footprint {:.3} x {:.3} m around the wheels: `{base_name}` has no box, cylinder or \
+             sphere collision geometry (meshes are not read)",
+            2.0 * half_l,
+            2.0 * half_w
+        ));
+        rect(half_l, half_w)
+    } else {
+        let fp = footprint_from(&outline);
+        found.push(format!("footprint from the collision geometry of {}", used.join(", ")));
+        fp
+    };
+
+    // Lidar: a link named like one; beams and ranges from a Gazebo ray sensor if present.
+    let lidar_link = LIDAR_NAMES.iter().find_map(|n| {
+        model.links.iter().find(|l| l.name.to_lowercase().contains(n) && pose_in_base(&l.name).is_some())
+    });
+    let mut lidar = LidarSpec::default();
+    match lidar_link {
+        Some(l) => {
+            let t = pose_in_base(&l.name).expect("checked above");
+            lidar.mount = Pose2::new(t.t[0] as f32, t.t[1] as f32, t.yaw() as f32);
+            found.push(format!(
+                "lidar link `{}` at [{:.3}, {:.3}, {:.3}] in `{base_name}`",
+                l.name, lidar.mount.x, lidar.mount.y, lidar.mount.yaw
+            ));
+        }
+        None => {
+            defaults.push(format!("lidar mount [0, 0, 0]: no link named like a lidar ({})", LIDAR_NAMES.join(", ")))
+        }
+    }
+    match gazebo_ray_sensor(text) {
+        Some(s) => {
+            found.push(format!(
+                "Gazebo ray sensor: {} beams over [{:.4}, {:.4}] rad, {}-{} m",
+                s.beams, s.angle_min, s.angle_max, s.range_min, s.range_max
+            ));
+            lidar.beams = s.beams;
+            lidar.angle_min = s.angle_min;
+            lidar.angle_max = s.angle_max;
+            lidar.range_min = s.range_min;
+            lidar.range_max = s.range_max;
+        }
+        None => defaults.push(format!(
+            "lidar of {} beams over 360°, {}-{} m: no Gazebo <sensor type=\"ray\"> in the file",
+            lidar.beams, lidar.range_min, lidar.range_max
+        )),
+    }
+
+    let name = if model.name.trim().is_empty() { "imported".to_string() } else { model.name.clone() };
+    let robot = RobotSpec {
+        description: format!(
+            "imported from {}",
+            Path::new(file).file_name().map_or(file.into(), |f| f.to_string_lossy())
+        ),
+        name,
+        wheel_radius: wheel_radius as f32,
+        wheel_separation: wheel_separation as f32,
+        max_wheel_speed: max_wheel_speed as f32,
+        max_linear: max_linear as f32,
+        min_linear: -(max_linear as f32),
+        max_angular: max_angular as f32,
+        max_linear_accel: 1.0,
+        max_angular_accel: 3.0,
+        footprint,
+        lidar,
+    };
+    robot
+        .validate()
+        .map_err(|e| unusable(format!("the robot read from it is invalid: `{}`: {}", e.key, e.expected)))?;
+    Ok(UrdfImport { robot, found, defaults })
+}
+
+fn normalize(v: [f64; 3]) -> [f64; 3] {
+    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if n > 0.0 { v.map(|x| x / n) } else { [1.0, 0.0, 0.0] }
+}
+
+fn invert(t: Tf) -> Tf {
+    let mut r = [[0.0; 3]; 3];
+    for (i, row) in r.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = t.r[j][i];
+        }
+    }
+    let inv = Tf { r, t: [0.0; 3] };
+    let t2 = inv.rotate(t.t);
+    Tf { r, t: [-t2[0], -t2[1], -t2[2]] }
+}
+
+/// The outline of a collision shape seen from above (points in the base frame).
+fn shape_outline(g: &Geometry, t: &Tf) -> Vec<[f64; 2]> {
+    let corners = |hx: f64, hy: f64, hz: f64| {
+        let mut v = Vec::new();
+        for sx in [-1.0, 1.0] {
+            for sy in [-1.0, 1.0] {
+                for sz in [-1.0, 1.0] {
+                    let p = t.apply([sx * hx, sy * hy, sz * hz]);
+                    v.push([p[0], p[1]]);
+                }
+            }
+        }
+        v
+    };
+    match g {
+        Geometry::Box { size } => corners(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0),
+        Geometry::Cylinder { radius, length } | Geometry::Capsule { radius, length } => {
+            // A cylinder's axis is its frame's z: sample both end circles.
+            let mut v = Vec::new();
+            for k in 0..32 {
+                let a = k as f64 * 2.0 * PI / 32.0;
+                for z in [-length / 2.0, length / 2.0] {
+                    let p = t.apply([radius * a.cos(), radius * a.sin(), z]);
+                    v.push([p[0], p[1]]);
+                }
+            }
+            v
+        }
+        Geometry::Sphere { radius } => (0..32)
+            .map(|k| k as f64 * 2.0 * PI / 32.0)
+            .map(|a| [t.t[0] + radius * a.cos(), t.t[1] + radius * a.sin()])
+            .collect(),
+        Geometry::Mesh { .. } => Vec::new(),
+    }
+}
+
+fn rect(hx: f64, hy: f64) -> FootprintSpec {
+    FootprintSpec::Polygon(vec![
+        [-hx as f32, -hy as f32],
+        [hx as f32, -hy as f32],
+        [hx as f32, hy as f32],
+        [-hx as f32, hy as f32],
+    ])
+}
+
+/// A circle when the outline is round and centred on the robot frame, else its convex hull.
+fn footprint_from(points: &[[f64; 2]]) -> FootprintSpec {
+    let radii: Vec<f64> = points.iter().map(|p| p[0].hypot(p[1])).collect();
+    let (lo, hi) = radii.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(*r), b.max(*r)));
+    if hi > 0.0 && (hi - lo) / hi < 0.02 {
+        return FootprintSpec::Circle { radius: hi as f32 };
+    }
+    let hull = convex_hull(points);
+    let pts: Vec<crate::geometry::Vec2> =
+        hull.iter().map(|p| crate::geometry::Vec2::new(p[0] as f32, p[1] as f32)).collect();
+    match convex_ccw(&pts) {
+        Some(ccw) => FootprintSpec::Polygon(ccw.iter().map(|v| [v.x, v.y]).collect()),
+        None => FootprintSpec::Circle { radius: hi as f32 },
+    }
+}
+
+/// Andrew's monotone chain; counter-clockwise, no collinear points.
+fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let mut p: Vec<[f64; 2]> = points.to_vec();
+    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    p.dedup_by(|a, b| (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9);
+    if p.len() < 3 {
+        return p;
+    }
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    let mut hull: Vec<[f64; 2]> = Vec::new();
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &[f64; 2]>> =
+            if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
+        for q in iter {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], *q) <= 1e-12 {
+                hull.pop();
+            }
+            hull.push(*q);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// A Gazebo ray sensor's scan geometry.
+#[derive(Debug, PartialEq)]
+struct RaySensor {
+    beams: usize,
+    angle_min: f32,
+    angle_max: f32,
+    range_min: f32,
+    range_max: f32,
+}
+
+/// Finds the first `<sensor type="ray|gpu_ray|lidar|gpu_lidar">` in `<gazebo>` blocks (which
+/// urdf-rs skips) and reads `scan/horizontal/{samples,min_angle,max_angle}` and
+/// `range/{min,max}`.
+fn gazebo_ray_sensor(text: &str) -> Option<RaySensor> {
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(text);
+    let mut path: Vec<String> = Vec::new();
+    let mut in_sensor = false;
+    let mut values: HashMap<String, f32> = HashMap::new();
+    loop {
+        match reader.read_event().ok()? {
+            Event::Start(e) => {
+                let name = String::from_utf8_lossy(e.local_name().as_ref()).into_owned();
+                if name == "sensor" {
+                    let ty = e
+                        .attributes()
+                        .flatten()
+                        .find(|a| a.key.local_name().as_ref() == b"type")
+                        .map(|a| String::from_utf8_lossy(&a.value).into_owned());
+                    in_sensor = matches!(ty.as_deref(), Some("ray" | "gpu_ray" | "lidar" | "gpu_lidar"));
+                }
+                path.push(name);
+            }
+            // The guard pops the closed element whether or not it ends the sensor.
+            Event::End(_) if path.pop().as_deref() == Some("sensor") && in_sensor => break,
+            Event::Text(t) if in_sensor => {
+                let n = path.len();
+                if n >= 2 {
+                    let key = format!("{}/{}", path[n - 2], path[n - 1]);
+                    if let Ok(v) = String::from_utf8_lossy(t.as_ref()).trim().parse::<f32>() {
+                        values.entry(key).or_insert(v);
+                    }
+                }
+            }
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    let get = |k: &str| values.get(k).copied();
+    Some(RaySensor {
+        beams: get("horizontal/samples")? as usize,
+        angle_min: get("horizontal/min_angle")?,
+        angle_max: get("horizontal/max_angle")?,
+        range_min: get("range/min")?,
+        range_max: get("range/max")?,
+    })
+}
