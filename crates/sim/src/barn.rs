@@ -114,6 +114,7 @@ impl BarnSet {
                 margin: 0.0,
                 goal_motion: None,
                 movers: Vec::new(),
+                people: Vec::new(),
                 map: None,
                 // BARN guarantees a path for the Jackal's rectangle, through gaps its
                 // circumscribed circle would not pass.

@@ -8,6 +8,7 @@
 //! - [`lidar`]: [`LidarSpec`] and the ray caster (a culled hot loop, checked against parry2d);
 //! - [`robot`]: [`RobotSpec`] presets and [`DiffDrive`] kinematics; [`urdf`]: robots from URDF;
 //! - [`barn`]: the BARN Challenge worlds as scenarios, and the challenge's score;
+//! - [`movers`] and [`people`]: moving obstacles, and pedestrians that avoid each other (ORCA);
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
 //! - [`task`]: the navigation task (observation layout, action scaling, reward, termination);
 //! - [`vec_env`]: [`VecEnv`], N environments stepped in parallel;
@@ -37,6 +38,7 @@ pub mod geometry;
 pub mod lidar;
 pub mod map;
 pub mod movers;
+pub mod people;
 pub mod reachability;
 pub mod robot;
 pub mod scenario;

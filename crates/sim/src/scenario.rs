@@ -6,6 +6,7 @@ use crate::config::{ConfigError, Invalid, Validate, check_interval, check_range,
 use crate::geometry::{Obstacle, ObstacleSpec, Pose2, Rect, Vec2};
 use crate::map::{MAP_PRESETS, MapRef, OccupancyGrid};
 use crate::movers::{Mover, MoverShape, MoverSpec, PathMode};
+use crate::people::{PeopleGenSpec, Person, PersonSpec};
 use crate::reachability::ReachabilityGrid;
 use crate::world::World;
 use rand::RngExt;
@@ -23,6 +24,7 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("random-dynamic", include_str!("../../../scenarios/random-dynamic.yaml")),
     ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
     ("warehouse", include_str!("../../../scenarios/warehouse.yaml")),
+    ("people-room", include_str!("../../../scenarios/people-room.yaml")),
 ];
 
 /// A walled rectangular arena.
@@ -107,6 +109,9 @@ pub struct GeneratorSpec {
     /// Moving boxes drawn for every episode, each going back and forth across the straight
     /// line from start to goal (the article's dynamic task). None by default.
     pub movers: Option<MoverGenSpec>,
+    /// People drawn for every episode, each walking back and forth across the start–goal
+    /// line. None by default.
+    pub people: Option<PeopleGenSpec>,
 }
 
 /// Moving obstacles the generator draws for every episode.
@@ -137,6 +142,7 @@ impl Default for GeneratorSpec {
             shapes: vec![ShapeKind::Circle, ShapeKind::Box, ShapeKind::Polygon],
             min_clearance: 0.8,
             movers: None,
+            people: None,
         }
     }
 }
@@ -183,6 +189,9 @@ pub struct ScenarioSpec {
     /// Moving obstacles.
     #[serde(default)]
     pub movers: Vec<MoverSpec>,
+    /// Pedestrians walking between their goals (ORCA).
+    #[serde(default)]
+    pub people: Vec<PersonSpec>,
     /// An occupancy-grid map (ROS `map_server` YAML) as the static world; `obstacles` are
     /// added on top of it.
     #[serde(default)]
@@ -273,6 +282,12 @@ impl Validate for ScenarioSpec {
         for (i, m) in self.movers.iter().enumerate() {
             m.validate().map_err(|e| e.under(&format!("movers[{i}]")))?;
         }
+        for (i, p) in self.people.iter().enumerate() {
+            p.validate().map_err(|e| e.under(&format!("people[{i}]")))?;
+        }
+        if let Some(p) = self.procedural.as_ref().and_then(|g| g.people.as_ref()) {
+            p.validate().map_err(|e| e.under("procedural.people"))?;
+        }
         if let Some(m) = self.procedural.as_ref().and_then(|g| g.movers.as_ref()) {
             if m.count[0] > m.count[1] || m.count[1] > 100 {
                 return Err(Invalid::new("procedural.movers.count", "[min, max] with min <= max <= 100"));
@@ -323,6 +338,8 @@ pub struct EpisodeSetup {
     pub goal: Vec2,
     /// Moving obstacles, placed at time 0.
     pub movers: Vec<Mover>,
+    /// People, where they start.
+    pub people: Vec<Person>,
     /// Goal velocity (m/s); zero for a fixed goal.
     pub goal_velocity: Vec2,
 }
@@ -500,6 +517,7 @@ impl Scenario {
             match self.place(&world, &grid, rng) {
                 Ok((start, goal)) => {
                     let movers = self.draw_movers(start.position(), goal, rng);
+                    let people = self.draw_people(&world, start.position(), goal, rng);
                     let goal_velocity = match &self.spec.goal_motion {
                         Some(m) => {
                             let speed = if m.speed[1] > m.speed[0] {
@@ -512,7 +530,7 @@ impl Scenario {
                         }
                         None => Vec2::ZERO,
                     };
-                    return Ok(EpisodeSetup { world, start, goal, movers, goal_velocity });
+                    return Ok(EpisodeSetup { world, start, goal, movers, people, goal_velocity });
                 }
                 Err(r) => reason = r,
             }
@@ -521,6 +539,39 @@ impl Scenario {
             }
         }
         Err(NoEpisode { scenario: self.spec.name.clone(), reason })
+    }
+
+    /// The scenario's people plus generated ones walking across the start–goal line.
+    fn draw_people<R: rand::Rng>(&self, world: &World, start: Vec2, goal: Vec2, rng: &mut R) -> Vec<Person> {
+        let mut people: Vec<Person> = self.spec.people.iter().map(|p| p.instantiate(rng)).collect();
+        let Some(g) = self.spec.procedural.as_ref().and_then(|p| p.people.as_ref()) else { return people };
+        let line = goal - start;
+        let normal = Vec2::new(-line.y, line.x).normalize_or_zero();
+        for _ in 0..rng.random_range(g.count[0]..=g.count[1]) {
+            let radius = rng.random_range(g.radius[0]..=g.radius[1]);
+            // A few tries for a crossing whose ends are in free space.
+            for _ in 0..20 {
+                let centre = start + line * rng.random_range(0.25..=0.75f32);
+                let half = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
+                let tilt = rng.random_range(-0.5..=0.5f32);
+                let dir = (normal + line.normalize_or_zero() * tilt).normalize_or_zero();
+                let (a, b) = (centre - dir * half, centre + dir * half);
+                let inside = |p: Vec2| self.area.contains(p);
+                if !(inside(a) && inside(b) && world.is_clear(a, radius + 0.05) && world.is_clear(b, radius + 0.05)) {
+                    continue;
+                }
+                let spec = PersonSpec {
+                    radius,
+                    goals: vec![a.into(), b.into()],
+                    speed: g.speed,
+                    order: crate::people::GoalOrder::Sequence,
+                    random_start: true,
+                };
+                people.push(spec.instantiate(rng));
+                break;
+            }
+        }
+        people
     }
 
     /// The scenario's movers plus generated ones crossing the start–goal line.

@@ -6,6 +6,7 @@ use crate::controller::{Controller, LaserScan, RobotObservation, Twist};
 use crate::geometry::{Pose2, Vec2, wrap_angle};
 use crate::lidar::{Lidar, RayGeometry, min_pool};
 use crate::movers::Mover;
+use crate::people::{Crowd, Person};
 use crate::robot::{DiffDrive, DriveParams, Footprint, RobotSpec};
 use crate::scenario::{NoEpisode, Scenario, ScenarioSpec};
 use crate::world::World;
@@ -144,6 +145,12 @@ pub struct RewardConfig {
     pub collision: f32,
     /// Reward on time-out (default -30).
     pub timeout: f32,
+    /// Social-safety penalty weight (default 0: off). Every control step, for each person
+    /// closer than `social_radius` (gap from the robot's circumscribed circle to the body):
+    /// `-social * (social_radius - gap) / social_radius`, 0 at the edge, `-social` at contact.
+    pub social: f32,
+    /// Radius of a person's personal space for the social penalty (m, default 1.0).
+    pub social_radius: f32,
 }
 
 impl Default for RewardConfig {
@@ -156,6 +163,8 @@ impl Default for RewardConfig {
             goal_time_bonus: 0.01,
             collision: -30.0,
             timeout: -30.0,
+            social: 0.0,
+            social_radius: 1.0,
         }
     }
 }
@@ -272,6 +281,8 @@ impl Validate for TaskConfig {
             check_range(k, v, -1e4, 1e4)?;
         }
         check_range("reward.proximity_range", r.proximity_range, 0.0, 100.0)?;
+        check_range("reward.social", r.social, 0.0, 1e4)?;
+        check_range("reward.social_radius", r.social_radius, 0.01, 100.0)?;
         self.randomization.validate()?;
         for (i, t) in self.observation.0.iter().enumerate() {
             if let ObsTerm::Lidar { beams, clip } = t {
@@ -334,6 +345,9 @@ pub struct EpisodeStats {
     pub wheel_separation: f32,
     /// This episode's speed-limit scale after randomisation.
     pub speed_scale: f32,
+    /// Smallest gap between the robot's circumscribed circle and a person (m; +inf without
+    /// people).
+    pub min_person_gap: f32,
 }
 
 /// What the environment reports after each control step.
@@ -451,6 +465,8 @@ pub struct NavEnv {
     initial_distance: f32,
     last_episode: Option<EpisodeStats>,
     movers: Vec<Mover>,
+    crowd: Crowd,
+    min_person_gap: f32,
     mover_rays: RayGeometry,
     time: f32,
     /// Commands given but not yet applied (control latency), oldest first.
@@ -491,6 +507,8 @@ impl NavEnv {
             initial_distance: 0.0,
             last_episode: None,
             movers: Vec::new(),
+            crowd: Crowd::default(),
+            min_person_gap: f32::INFINITY,
             mover_rays: RayGeometry::default(),
             time: 0.0,
             pending: std::collections::VecDeque::with_capacity(setup.task.randomization.latency_steps + 1),
@@ -509,12 +527,16 @@ impl NavEnv {
         let mut ep = self.setup.scenario.sample(&mut self.rng)?;
         let room = self.setup.scenario.start_clearance();
         for _ in 0..20 {
-            if ep.movers.iter().all(|m| m.signed_distance(ep.start.position()) >= room) {
+            let p = ep.start.position();
+            if ep.movers.iter().all(|m| m.signed_distance(p) >= room)
+                && ep.people.iter().all(|q| q.signed_distance(p) >= room)
+            {
                 break;
             }
             ep = self.setup.scenario.sample(&mut self.rng)?;
         }
         self.movers = ep.movers;
+        self.crowd = Crowd::new(ep.people, &ep.world);
         self.time = 0.0;
         self.world = ep.world;
         let dr = &self.setup.task.randomization;
@@ -538,6 +560,8 @@ impl NavEnv {
         self.episode_return = 0.0;
         self.speed_sum = 0.0;
         self.path_length = 0.0;
+        let radius = self.setup.footprint.radius();
+        self.min_person_gap = self.crowd.min_gap(self.drive.pose.position(), radius);
         self.scan();
         self.min_range = self.current_min_range();
         Ok(())
@@ -545,12 +569,15 @@ impl NavEnv {
 
     fn scan(&mut self) {
         let s = &self.setup;
-        if self.movers.is_empty() {
+        if self.movers.is_empty() && self.crowd.is_empty() {
             s.lidar.scan(&self.drive.pose, self.world.ray_geometry(), &mut self.dirs, &mut self.ranges);
         } else {
             self.mover_rays.clear();
             for m in &self.movers {
                 m.push_to(&mut self.mover_rays);
+            }
+            for p in &self.crowd.people {
+                p.push_to(&mut self.mover_rays);
             }
             let layers = [self.world.ray_geometry(), &self.mover_rays];
             s.lidar.scan_layers(&self.drive.pose, &layers, &mut self.dirs, &mut self.ranges);
@@ -587,6 +614,10 @@ impl NavEnv {
         let cmd = self.pending.pop_front().unwrap_or(given);
         self.applied = cmd;
         let mut contact = false;
+        let robot_radius = setup.footprint.radius();
+        // People keep the robot's clearance (footprint or collision range, plus margin) away.
+        let personal = setup.scenario.clearance();
+        self.crowd.plan(self.drive.pose.position(), personal, task.control_period, &mut self.rng);
         for _ in 0..setup.substeps {
             let before = self.drive.pose.position();
             self.drive.step(cmd, task.physics_dt);
@@ -598,10 +629,12 @@ impl NavEnv {
             for m in &mut self.movers {
                 m.set_time(self.time);
             }
+            self.crowd.advance(task.physics_dt);
             self.path_length += (self.drive.pose.position() - before).length();
             let fp = &setup.footprint;
             if self.world.footprint_collides(fp, &self.drive.pose)
                 || self.movers.iter().any(|m| m.touches(fp, &self.drive.pose))
+                || self.crowd.people.iter().any(|p| p.touches(fp, &self.drive.pose))
             {
                 contact = true;
                 break;
@@ -617,6 +650,13 @@ impl NavEnv {
         let d = (self.goal - self.drive.pose.position()).length();
         let rw = &task.reward;
         let mut reward = rw.progress * (self.distance - d);
+        if !self.crowd.is_empty() {
+            let here = self.drive.pose.position();
+            self.min_person_gap = self.min_person_gap.min(self.crowd.min_gap(here, robot_radius));
+            if rw.social > 0.0 {
+                reward -= rw.social * self.crowd.intrusion(here, robot_radius, rw.social_radius);
+            }
+        }
         if r_min < rw.proximity_range {
             reward -= rw.proximity * (-r_min).exp();
         }
@@ -648,6 +688,7 @@ impl NavEnv {
                 wheel_radius: self.drive.params.wheel_radius,
                 wheel_separation: self.drive.params.wheel_separation,
                 speed_scale: self.speed_scale,
+                min_person_gap: self.min_person_gap,
             });
         }
         StepOutcome {
@@ -741,6 +782,11 @@ impl NavEnv {
     /// The goal.
     pub fn goal(&self) -> Vec2 {
         self.goal
+    }
+
+    /// The people, where they are now.
+    pub fn people(&self) -> &[Person] {
+        &self.crowd.people
     }
 
     /// The moving obstacles, where they are now.
