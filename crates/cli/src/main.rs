@@ -92,6 +92,34 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Draw a scenario (PNG or SVG): the world, the robot at its start, the goal, the lidar's
+    /// rays; with `--episode`, one episode under `--controller` with its whole path, or
+    /// animated when the output is a GIF.
+    Render {
+        #[command(flatten)]
+        env: EnvArgs,
+        /// Output picture: .png, .svg or .gif.
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Run one episode under `--controller` and draw it.
+        #[arg(long)]
+        episode: bool,
+        /// Controller for `--episode`: greedy or straight.
+        #[arg(long, default_value = "greedy")]
+        controller: String,
+        /// Episode seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Pixels along the longer side.
+        #[arg(long, default_value_t = 800)]
+        size: u32,
+        /// Draw every N-th lidar beam (0: none).
+        #[arg(long, default_value_t = 4)]
+        beam_stride: usize,
+        /// GIF playback speed relative to real time.
+        #[arg(long, default_value_t = 2.0)]
+        speedup: f32,
+    },
     /// List the shipped scenarios and robots.
     List,
     /// Robot files.
@@ -176,6 +204,9 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Robot { command: RobotCommand::Import { urdf, out, name } } => robot_import(&urdf, out, name),
+        Command::Render { env, out, episode, controller, seed, size, beam_stride, speedup } => {
+            render(&env, &out, episode, &controller, seed, size, beam_stride, speedup)
+        }
         Command::List => {
             println!("scenarios:");
             for (name, _) in SCENARIO_PRESETS {
@@ -396,5 +427,55 @@ fn robot_import(urdf: &std::path::Path, out: Option<PathBuf>, name: Option<Strin
         }
         None => print!("{yaml}"),
     }
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn render(
+    args: &EnvArgs,
+    out: &std::path::Path,
+    episode: bool,
+    controller: &str,
+    seed: u64,
+    size: u32,
+    beam_stride: usize,
+    speedup: f32,
+) -> Result<()> {
+    use rlnav_bench::episode::{Frame, record_episode};
+    use rlnav_bench::render::{Scene, Style, view_of};
+    let is_gif = out.extension().is_some_and(|e| e.eq_ignore_ascii_case("gif"));
+    anyhow::ensure!(episode || !is_gif, "{}: an animation needs --episode", out.display());
+    let setup = args.setup()?;
+    let mut env = NavEnv::new(setup.clone(), seed)?;
+    let (frames, summary) = if episode {
+        let mut c = rlnav_bench::controllers::by_name(controller)?;
+        let rec = record_episode(&mut env, c.as_mut())?;
+        let s = rec.stats;
+        let summary = format!(
+            "{} on {}: {:?} after {:.1} s, min lidar {:.2} m, mean speed {:.2} m/s",
+            c.name(),
+            setup.scenario.spec().name,
+            s.outcome,
+            s.time,
+            s.min_range,
+            s.mean_speed
+        );
+        (rec.frames, summary)
+    } else {
+        (vec![Frame::capture(&env, 0.0)], format!("{} at the start of an episode", setup.scenario.spec().name))
+    };
+    let scene = Scene {
+        world: env.world(),
+        view: view_of(env.world(), setup.scenario.area(), 0.3),
+        footprint: &setup.robot.footprint,
+        lidar: &setup.robot.lidar,
+        goal_tolerance: setup.task.goal_tolerance,
+    };
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let style = Style { size, beam_stride, trail: episode };
+    scene.write(out, &frames, &style, 300, speedup)?;
+    println!("{summary}\nwrote {}", out.display());
     Ok(())
 }

@@ -162,7 +162,7 @@ impl Mover {
     }
 
     /// Box corners (counter-clockwise) or `None` for a circle.
-    fn corners(&self) -> Option<[Vec2; 4]> {
+    pub fn corners(&self) -> Option<[Vec2; 4]> {
         match self.shape {
             MoverShape::Circle { .. } => None,
             MoverShape::Box { size } => {
