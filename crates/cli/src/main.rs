@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 use rlnav_sim::scenario::{SCENARIO_PRESETS, ScenarioSpec};
 use rlnav_sim::task::{EnvSetup, NavEnv, TaskConfig};
 use rlnav_sim::vec_env::{VecEnv, measure_speed};
-use rlnav_sim::{Controller, GreedyGoal, Outcome, RobotSpec, StraightAhead};
+use rlnav_sim::{Outcome, RobotSpec};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -218,6 +218,13 @@ fn run(cli: Cli) -> Result<()> {
                 let r = RobotSpec::load(name)?;
                 println!("  {name:<18} {}", r.description);
             }
+            println!("maps (for a scenario's `map: {{file: NAME}}`):");
+            for (name, ..) in rlnav_sim::map::MAP_PRESETS {
+                let g = rlnav_sim::map::OccupancyGrid::load(name, Default::default())?;
+                let (w, h) = g.size();
+                println!("  {name:<16} {w} x {h} cells of {} m", g.resolution());
+            }
+            println!("BARN worlds: --scenario PATH/barn_worlds.json#world_N --robot jackal");
             Ok(())
         }
     }
@@ -225,11 +232,7 @@ fn run(cli: Cli) -> Result<()> {
 
 fn demo(args: &EnvArgs, controller: &str, episodes: usize, seed: u64) -> Result<()> {
     let setup = args.setup()?;
-    let mut c: Box<dyn Controller> = match controller {
-        "greedy" => Box::new(GreedyGoal::default()),
-        "straight" => Box::new(StraightAhead { speed: 0.3 }),
-        other => anyhow::bail!("unknown controller `{other}`: expected `greedy` or `straight`"),
-    };
+    let mut c = rlnav_bench::controllers::by_name(controller)?;
     println!(
         "scenario {} | robot {} | controller {} | {} episodes, seed {seed}",
         setup.scenario.spec().name,

@@ -84,3 +84,48 @@ fn train_smoke_run_and_errors() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn render_writes_pictures_and_refuses_what_it_cannot() {
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-render-{}", std::process::id()));
+    let png = dir.join("scene.png");
+    let out = rlnav(&["render", "--scenario", "warehouse", "-o", png.to_str().unwrap(), "--size", "300"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(image_size(&png), (300, 234), "the 13 x 10 m map plus 0.3 m margins, 300 px wide");
+    let gif = dir.join("run.gif");
+    let out =
+        rlnav(&["render", "--scenario", "people-room", "--episode", "-o", gif.to_str().unwrap(), "--size", "160"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("greedy on people-room"));
+    assert!(std::fs::read(&gif).unwrap().starts_with(b"GIF89a"));
+    let out = rlnav(&["render", "-o", gif.to_str().unwrap()]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("needs --episode"));
+    let out = rlnav(&["render", "--episode", "--controller", "psychic", "-o", png.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("unknown controller `psychic`") && err.contains("greedy"), "{err}");
+}
+
+fn image_size(png: &std::path::Path) -> (u32, u32) {
+    // PNG: the IHDR chunk's width and height follow the 8-byte signature and 8-byte chunk header.
+    let b = std::fs::read(png).unwrap();
+    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n");
+    let be = |i: usize| u32::from_be_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+    (be(16), be(20))
+}
+
+#[test]
+fn robot_import_writes_a_robot_that_runs() {
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-urdf-{}", std::process::id()));
+    let yaml = dir.join("robots/burger.yaml");
+    let urdf = concat!(env!("CARGO_MANIFEST_DIR"), "/../sim/tests/urdf/burger_like.urdf");
+    let out = rlnav(&["robot", "import", urdf, "-o", yaml.to_str().unwrap(), "--name", "burger"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("found: drive wheels") && err.contains("DEFAULT (check it): accelerations"), "{err}");
+    let out = rlnav(&["demo", "--robot", yaml.to_str().unwrap(), "--episodes", "2", "--scenario", "empty-room"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("robot burger"));
+    let bad = concat!(env!("CARGO_MANIFEST_DIR"), "/../sim/tests/urdf/no_wheels.urdf");
+    let out = rlnav(&["robot", "import", bad]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no pair of drive wheels"));
+}
