@@ -56,6 +56,11 @@ pub enum PathMode {
     BackAndForth,
     /// Around the closed polygon of waypoints.
     Loop,
+    /// First to last waypoint once at constant velocity, then standing there (a crossing).
+    Once,
+    /// First to last waypoint, then from the first again: a stream of constant-velocity
+    /// crossings (put the ends outside the room for traffic that comes and goes).
+    Repeat,
 }
 
 /// A moving obstacle in a scenario file.
@@ -103,7 +108,12 @@ impl MoverSpec {
             points.push(points[0]);
         }
         let length: f32 = points.windows(2).map(|w| (w[1] - w[0]).length()).sum();
-        let cycle = if self.mode == PathMode::Loop { length } else { 2.0 * length };
+        let cycle = match self.mode {
+            PathMode::Loop | PathMode::Repeat => length,
+            PathMode::BackAndForth => 2.0 * length,
+            // A crossing starts somewhere along its way, not past its end.
+            PathMode::Once => 0.5 * length,
+        };
         let phase = if self.random_phase { rng.random_range(0.0..cycle.max(1e-6)) } else { 0.0 };
         Mover { shape: self.shape.clone(), points, length, mode: self.mode, speed, phase, pose: Pose2::default() }
             .at_time(0.0)
@@ -138,8 +148,10 @@ impl Mover {
         let mut backwards = false;
         if self.length <= 0.0 {
             s = 0.0;
-        } else if self.mode == PathMode::Loop {
+        } else if matches!(self.mode, PathMode::Loop | PathMode::Repeat) {
             s = s.rem_euclid(self.length);
+        } else if self.mode == PathMode::Once {
+            s = s.clamp(0.0, self.length);
         } else {
             s = s.rem_euclid(2.0 * self.length);
             if s > self.length {
@@ -241,6 +253,34 @@ mod tests {
         assert!((m.signed_distance(Vec2::new(0.0, 0.5)) - 0.4).abs() < 1e-5);
         let fp = Footprint::new(&crate::robot::FootprintSpec::Circle { radius: 0.1 }).unwrap();
         assert!(m.touches(&fp, &Pose2::new(0.0, 0.19, 0.0)) && !m.touches(&fp, &Pose2::new(0.0, 0.21, 0.0)));
+    }
+
+    #[test]
+    fn crossings_at_constant_velocity() {
+        let spec = |mode| MoverSpec {
+            shape: MoverShape::Circle { radius: 0.2 },
+            waypoints: vec![[-5.0, 1.0], [5.0, 1.0]],
+            speed: [0.5, 0.5],
+            mode,
+            random_phase: false,
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(0);
+        let mut once = spec(PathMode::Once).instantiate(&mut rng);
+        let mut repeat = spec(PathMode::Repeat).instantiate(&mut rng);
+        for (t, x_once, x_repeat) in [(4.0, -3.0, -3.0), (19.0, 4.5, 4.5), (25.0, 5.0, -2.5), (100.0, 5.0, -5.0)] {
+            once.set_time(t);
+            repeat.set_time(t);
+            assert!((once.pose.x - x_once).abs() < 1e-4, "once at {t}: {}", once.pose.x);
+            assert!((repeat.pose.x - x_repeat).abs() < 1e-4, "repeat at {t}: {}", repeat.pose.x);
+            assert_eq!((once.pose.y, once.pose.yaw, repeat.pose.yaw), (1.0, 0.0, 0.0), "always heading +x");
+        }
+        // A random phase puts a crossing somewhere in its first half.
+        let mut r = MoverSpec { random_phase: true, ..spec(PathMode::Once) };
+        r.speed = [0.5, 0.5];
+        for _ in 0..50 {
+            let m = r.instantiate(&mut rng);
+            assert!(m.pose.x >= -5.0 && m.pose.x <= 0.0);
+        }
     }
 
     #[test]
