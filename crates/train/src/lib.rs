@@ -1,8 +1,9 @@
 //! `rlnav-train`: PPO for navigation policies: rollouts, GAE, the update, curriculum,
-//! evaluation, checkpoints and training logs.
+//! evaluation, checkpoints, training logs, and the trained policy as an ONNX file.
 
 pub mod config;
 pub mod eval;
+pub mod export;
 pub mod gae;
 pub mod plots;
 pub mod ppo;

@@ -556,6 +556,9 @@ pub fn train(
         best_success_rate: st.best_success_rate.max(0.0),
         best_epoch: st.best_epoch,
     };
+    if !interrupted {
+        crate::export::write_policy(out, &out.join("policy.onnx"))?;
+    }
     crate::plots::training_svg(&out.join("metrics.csv"), &out.join("training.svg"))
         .map_err(|e| TrainError::Io { path: out.join("training.svg").display().to_string(), message: e })?;
     fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary).expect("summary serialises"))

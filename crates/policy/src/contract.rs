@@ -1,0 +1,210 @@
+//! The policy contract: everything a deployment needs to feed a policy the observation it was
+//! trained on and to read its action, carried in the ONNX file's `metadata_props` (key
+//! [`CONTRACT_KEY`], YAML) or, for models rlnav did not write, in a side YAML file.
+
+use rlnav_sim::config::{ConfigError, Invalid, Validate, check_interval, check_positive, check_range};
+use rlnav_sim::task::{ObsTerm, ObservationLayout};
+use rlnav_sim::{LidarSpec, Twist};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// `metadata_props` key holding the whole contract as YAML.
+pub const CONTRACT_KEY: &str = "rlnav.contract";
+/// Version of the contract format this build writes and reads.
+pub const CONTRACT_FORMAT: u32 = 1;
+
+/// The scan the observation's lidar term is built from, before pooling: `beams` rays
+/// counter-clockwise from `angle_min`, in a frame aligned with `base_link` (an incoming scan
+/// is rotated by its mount yaw and re-sampled to this geometry).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScanContract {
+    /// Number of beams.
+    pub beams: usize,
+    /// Angle of beam 0 (rad).
+    pub angle_min: f32,
+    /// Angle of the last beam (rad); a full turn spreads beams `2π / beams` apart.
+    pub angle_max: f32,
+    /// Readings below this are invalid (read as no return) (m).
+    pub range_min: f32,
+    /// Readings above this are no return (m).
+    pub range_max: f32,
+}
+
+impl ScanContract {
+    /// The scan geometry of a simulated lidar.
+    pub fn of(spec: &LidarSpec) -> Self {
+        Self {
+            beams: spec.beams,
+            angle_min: spec.angle_min,
+            angle_max: spec.angle_max,
+            range_min: spec.range_min,
+            range_max: spec.range_max,
+        }
+    }
+
+    /// As a lidar spec (mounted at `base_link`), for its beam geometry.
+    pub fn lidar_spec(&self) -> LidarSpec {
+        LidarSpec {
+            beams: self.beams,
+            angle_min: self.angle_min,
+            angle_max: self.angle_max,
+            range_min: self.range_min,
+            range_max: self.range_max,
+            ..Default::default()
+        }
+    }
+}
+
+/// How the network's `mu` becomes a velocity command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionScaling {
+    /// `mu` is clipped to `[-1, 1]` and mapped linearly onto the ranges (rlnav's policies).
+    Normalized,
+    /// `mu` is the command in m/s and rad/s, clipped to the ranges (rl_games exports as the
+    /// article's nodes use them).
+    Direct,
+}
+
+/// The action: `mu[0]` linear, `mu[1]` angular.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActionContract {
+    /// Scaling of `mu`.
+    pub scaling: ActionScaling,
+    /// Linear velocity range `[min, max]` (m/s).
+    pub linear: [f32; 2],
+    /// Angular velocity range `[min, max]` (rad/s).
+    pub angular: [f32; 2],
+}
+
+impl ActionContract {
+    /// The velocity command for network output `mu` (a non-finite value stops the robot).
+    pub fn to_twist(&self, mu: [f32; 2]) -> Twist {
+        if !(mu[0].is_finite() && mu[1].is_finite()) {
+            return Twist::default();
+        }
+        let map = |x: f32, r: [f32; 2]| match self.scaling {
+            ActionScaling::Normalized => r[0] + (x.clamp(-1.0, 1.0) + 1.0) * 0.5 * (r[1] - r[0]),
+            ActionScaling::Direct => x.clamp(r[0], r[1]),
+        };
+        Twist::new(map(mu[0], self.linear), map(mu[1], self.angular))
+    }
+}
+
+/// A recurrent state tensor carried from one step to the next.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecurrentState {
+    /// Graph input that takes the state (zeros at the start of an episode).
+    pub input: String,
+    /// Graph output that gives the next state.
+    pub output: String,
+    /// Shape, e.g. `[1, 1, 64]` (layers, batch, units).
+    pub shape: Vec<usize>,
+}
+
+/// Names of the graph's inputs and outputs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GraphIo {
+    /// The observation input (`[batch, n]`).
+    pub obs: String,
+    /// The action mean output (`[batch, 2]`).
+    pub mu: String,
+    /// Recurrent states (empty for a feed-forward policy).
+    #[serde(default)]
+    pub recurrent: Vec<RecurrentState>,
+}
+
+impl Default for GraphIo {
+    fn default() -> Self {
+        Self { obs: "obs".into(), mu: "mu".into(), recurrent: Vec::new() }
+    }
+}
+
+/// What a policy expects and produces.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PolicyContract {
+    /// Contract format version.
+    pub format: u32,
+    /// What wrote it (`rlnav 0.1.0`, or who wrote a side contract).
+    pub producer: String,
+    /// Task or run name.
+    pub task: String,
+    /// Robot the policy was trained on.
+    pub robot: String,
+    /// Observation vector, term by term.
+    pub observation: ObservationLayout,
+    /// The scan the lidar term is built from.
+    pub scan: ScanContract,
+    /// The action.
+    pub action: ActionContract,
+    /// Seconds between commands.
+    pub control_period: f32,
+    /// Distance at which the goal counts as reached (m).
+    pub goal_tolerance: f32,
+    /// Graph input and output names.
+    #[serde(default)]
+    pub io: GraphIo,
+}
+
+impl Validate for PolicyContract {
+    fn validate(&self) -> Result<(), Invalid> {
+        if self.format != CONTRACT_FORMAT {
+            return Err(Invalid::new("format", format!("{CONTRACT_FORMAT} (this rlnav's), got {}", self.format)));
+        }
+        if self.observation.0.is_empty() {
+            return Err(Invalid::new("observation", "at least one term"));
+        }
+        self.scan.lidar_spec().validate().map_err(|e| e.under("scan"))?;
+        for (i, t) in self.observation.0.iter().enumerate() {
+            if let ObsTerm::Lidar { beams, clip } = t {
+                if *beams == 0 || self.scan.beams % beams != 0 {
+                    return Err(Invalid::new(
+                        format!("observation[{i}].lidar.beams"),
+                        format!("a divisor of scan.beams ({}), got {beams}", self.scan.beams),
+                    ));
+                }
+                check_interval(&format!("observation[{i}].lidar.clip"), *clip, 0.0, 1000.0)?;
+            }
+        }
+        check_interval("action.linear", self.action.linear, -100.0, 100.0)?;
+        check_interval("action.angular", self.action.angular, -100.0, 100.0)?;
+        check_range("control_period", self.control_period, 1e-3, 10.0)?;
+        check_positive("goal_tolerance", self.goal_tolerance)?;
+        if self.io.obs.is_empty() || self.io.mu.is_empty() {
+            return Err(Invalid::new("io", "non-empty `obs` and `mu` names"));
+        }
+        for (i, s) in self.io.recurrent.iter().enumerate() {
+            if s.input.is_empty() || s.output.is_empty() || s.shape.is_empty() || s.shape.contains(&0) {
+                return Err(Invalid::new(format!("io.recurrent[{i}]"), "input and output names and a non-empty shape"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl PolicyContract {
+    /// Length of the observation vector.
+    pub fn obs_dim(&self) -> usize {
+        self.observation.len()
+    }
+
+    /// Reads a side contract (YAML).
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        rlnav_sim::config::from_yaml_file(path)
+    }
+
+    /// Parses contract YAML (`source` names it in errors).
+    pub fn from_yaml(source: &str, text: &str) -> Result<Self, ConfigError> {
+        rlnav_sim::config::from_yaml_str(source, text)
+    }
+
+    /// The contract as YAML.
+    pub fn to_yaml(&self) -> String {
+        rlnav_sim::config::to_yaml_string(self)
+    }
+}

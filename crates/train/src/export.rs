@@ -1,0 +1,68 @@
+//! A run's policy as an ONNX file carrying its contract: what `rlnav export` writes, and what
+//! training writes as `policy.onnx` when it ends.
+
+use crate::config::RunConfig;
+use crate::run::{TrainError, load_learner};
+use rlnav_policy::RunningMeanStd;
+use rlnav_policy::contract::{ActionContract, ActionScaling, CONTRACT_FORMAT, GraphIo, PolicyContract, ScanContract};
+use rlnav_policy::export::{export_onnx, lstm_io};
+use rlnav_sim::RobotSpec;
+use std::path::Path;
+
+/// The contract of a policy trained with `cfg` on `robot`: the task's observation and
+/// action, the robot's scan in `base_link` orientation.
+pub fn run_contract(cfg: &RunConfig, robot: &RobotSpec, lstm_units: usize) -> PolicyContract {
+    let mut scan = ScanContract::of(&robot.lidar);
+    // The contract's beams are in base_link orientation; the simulated lidar's own start
+    // angle is relative to its mount.
+    scan.angle_min += robot.lidar.mount.yaw;
+    scan.angle_max += robot.lidar.mount.yaw;
+    PolicyContract {
+        format: CONTRACT_FORMAT,
+        producer: format!("rlnav {}", env!("CARGO_PKG_VERSION")),
+        task: cfg.name.clone(),
+        robot: robot.name.clone(),
+        observation: cfg.task.observation.clone(),
+        scan,
+        action: ActionContract {
+            scaling: ActionScaling::Normalized,
+            linear: cfg.task.action.linear,
+            angular: cfg.task.action.angular,
+        },
+        control_period: cfg.task.control_period,
+        goal_tolerance: cfg.task.goal_tolerance,
+        io: if lstm_units > 0 { lstm_io(lstm_units) } else { GraphIo::default() },
+    }
+}
+
+/// The ONNX bytes of a run folder's checkpoint (`best` or `checkpoint`) and its contract.
+pub fn export_run(dir: &Path, which: &str) -> Result<(Vec<u8>, PolicyContract), TrainError> {
+    let (cfg, ppo) = load_learner(dir, which)?;
+    let robot = RobotSpec::load(&cfg.robot)?;
+    let net = ppo.inference_net();
+    let contract = run_contract(&cfg, &robot, net.lstm_units());
+    let norm = if cfg.train.normalize_input {
+        ppo.obs_norm.clone()
+    } else {
+        // Exactly the identity: scale 1 / sqrt(var + eps) = 1, no clipping.
+        let n = ppo.obs_norm.dim();
+        RunningMeanStd {
+            mean: vec![0.0; n],
+            var: vec![1.0 - rlnav_policy::normalizer::EPSILON; n],
+            count: 1.0,
+            clip: f32::INFINITY,
+        }
+    };
+    let bytes = export_onnx(&net, &norm, &contract)
+        .map_err(|e| TrainError::Io { path: dir.join(which).display().to_string(), message: e.to_string() })?;
+    Ok((bytes, contract))
+}
+
+/// Writes `export_run(dir, best-or-checkpoint)` to `out`; returns which checkpoint it used.
+pub fn write_policy(dir: &Path, out: &Path) -> Result<&'static str, TrainError> {
+    let which = if dir.join("best").join("state.json").is_file() { "best" } else { "checkpoint" };
+    let (bytes, _) = export_run(dir, which)?;
+    std::fs::write(out, bytes)
+        .map_err(|e| TrainError::Io { path: out.display().to_string(), message: e.to_string() })?;
+    Ok(which)
+}
