@@ -1,20 +1,39 @@
-//! Controllers by name, as the command line names them.
+//! Controllers by name, as the command line names them: `greedy`, `straight`, and
+//! `rl:POLICY.onnx` (or `rl:POLICY.onnx:CONTRACT.yaml` for a model with a side contract).
 
+use rlnav_policy::PolicyRunner;
 use rlnav_sim::{Controller, GreedyGoal, StraightAhead};
+use std::path::Path;
 
-/// The controller names [`by_name`] knows.
-pub const CONTROLLER_NAMES: &[&str] = &["greedy", "straight"];
+/// The built-in controller names [`by_name`] knows (besides `rl:FILE`).
+pub const CONTROLLER_NAMES: &[&str] = &["greedy", "straight", "rl:POLICY.onnx[:CONTRACT.yaml]"];
 
-/// An unknown controller name.
+/// A controller that cannot be made.
 #[derive(Debug, thiserror::Error)]
-#[error("unknown controller `{0}`: expected one of {names}", names = CONTROLLER_NAMES.join(", "))]
-pub struct UnknownController(pub String);
+pub enum ControllerError {
+    /// Not a known name.
+    #[error("unknown controller `{0}`: expected one of {names}", names = CONTROLLER_NAMES.join(", "))]
+    Unknown(String),
+    /// A policy that does not load.
+    #[error(transparent)]
+    Policy(#[from] rlnav_policy::runner::PolicyError),
+}
 
-/// A controller by name: `greedy` (turn towards the goal and drive, blind) or `straight`.
-pub fn by_name(name: &str) -> Result<Box<dyn Controller>, UnknownController> {
+/// A controller by name: `greedy` (turn towards the goal and drive, blind), `straight`, or an
+/// ONNX policy `rl:FILE[:CONTRACT]`.
+pub fn by_name(name: &str) -> Result<Box<dyn Controller>, ControllerError> {
     match name {
         "greedy" => Ok(Box::new(GreedyGoal::default())),
         "straight" => Ok(Box::new(StraightAhead { speed: 0.3 })),
-        other => Err(UnknownController(other.to_string())),
+        other => match other.strip_prefix("rl:") {
+            Some(spec) => {
+                let (model, contract) = match spec.split_once(".onnx:") {
+                    Some((m, c)) => (format!("{m}.onnx"), Some(c.to_string())),
+                    None => (spec.to_string(), None),
+                };
+                Ok(Box::new(PolicyRunner::load(Path::new(&model), contract.as_deref().map(Path::new))?))
+            }
+            None => Err(ControllerError::Unknown(other.to_string())),
+        },
     }
 }

@@ -3,8 +3,12 @@
 //!
 //! - [`controllers`]: controllers by name (`greedy`, `straight`);
 //! - [`episode`]: one episode run and recorded frame by frame;
+//! - [`evaluate`]: a controller through seeded episodes in parallel, with the summary figures;
+//! - [`latency`]: per-cycle compute time of a controller, as percentiles;
 //! - [`render`]: pictures of a scene or an episode (PNG, SVG) and animations (GIF).
 
 pub mod controllers;
 pub mod episode;
+pub mod evaluate;
+pub mod latency;
 pub mod render;

@@ -73,24 +73,69 @@ enum Command {
         #[arg(long, conflicts_with_all = ["config", "out", "seed"])]
         resume: Option<PathBuf>,
     },
-    /// Evaluate a trained run on a scenario (default: its evaluation scenario) and write
-    /// eval.json.
+    /// Evaluate a trained run (`--run`, on its evaluation scenario by default) or any ONNX
+    /// policy with a contract (`--policy`, on static-room by default) and write eval.json.
     Eval {
         /// Run folder written by `rlnav train`.
+        #[arg(long, required_unless_present = "policy", conflicts_with = "policy")]
+        run: Option<PathBuf>,
+        /// ONNX policy (its contract inside, or given with --contract).
         #[arg(long)]
-        run: PathBuf,
+        policy: Option<PathBuf>,
+        /// Side contract for a policy rlnav did not export (see contracts/).
+        #[arg(long, requires = "policy")]
+        contract: Option<PathBuf>,
+        /// Robot for --policy (default: the contract's robot when it is a preset, else the
+        /// scenario's).
+        #[arg(long, requires = "policy")]
+        robot: Option<String>,
         /// Scenario: a shipped name or a YAML file.
         #[arg(long)]
         scenario: Option<String>,
+        /// Worker threads for --policy.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
         /// Episodes.
         #[arg(long, default_value_t = 200)]
         episodes: usize,
         /// Seed of the evaluation episodes.
         #[arg(long, default_value_t = 12345)]
         seed: u64,
-        /// Folder for eval.json (default: the run folder).
+        /// Folder for eval.json (default: the run folder, or the current folder for --policy).
         #[arg(long)]
         out: Option<PathBuf>,
+    },
+    /// Export a run's policy as ONNX with its contract (training does it too: policy.onnx).
+    Export {
+        /// Run folder written by `rlnav train`.
+        #[arg(long)]
+        run: PathBuf,
+        /// Output file (default: RUN/policy.onnx).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Checkpoint: `best` (default when there is one) or `checkpoint` (the last).
+        #[arg(long)]
+        checkpoint: Option<String>,
+    },
+    /// Time one control cycle of a controller (for a policy: observation from the scan,
+    /// inference, command) on scenario observations; prints p50/p99 and a JSON line.
+    Latency {
+        #[command(flatten)]
+        env: EnvArgs,
+        /// Controller: greedy, straight or rl:POLICY.onnx[:CONTRACT.yaml].
+        #[arg(long)]
+        controller: String,
+        /// Cycles to time.
+        #[arg(long, default_value_t = 20000)]
+        cycles: usize,
+    },
+    /// Print an ONNX policy's contract and its graph's inputs and outputs.
+    Inspect {
+        /// The ONNX file.
+        policy: PathBuf,
+        /// Side contract to check the model against instead of the embedded one.
+        #[arg(long)]
+        contract: Option<PathBuf>,
     },
     /// Draw a scenario (PNG or SVG): the world, the robot at its start, the goal, the lidar's
     /// rays; with `--episode`, one episode under `--controller` with its whole path, or
@@ -171,6 +216,12 @@ impl EnvArgs {
 }
 
 fn main() {
+    // A closed pipe (`rlnav list | head`) ends the program quietly, as for other command-line
+    // tools, instead of panicking in println!.
+    #[cfg(unix)]
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     if let Err(e) = run(Cli::parse()) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
@@ -184,7 +235,7 @@ fn run(cli: Cli) -> Result<()> {
             sim_speed(&env, envs, threads, steps, seed, reference_lidar)
         }
         Command::Train { config, out, seed, set, resume } => train(config, out, seed, set, resume),
-        Command::Eval { run, scenario, episodes, seed, out } => {
+        Command::Eval { run: Some(run), policy: None, scenario, episodes, seed, out, .. } => {
             anyhow::ensure!(episodes > 0, "--episodes must be at least 1");
             let ev = rlnav_train::run::evaluate_run(&run, scenario.as_deref(), episodes, 50, seed)?;
             let r = &ev.summary;
@@ -197,10 +248,41 @@ fn run(cli: Cli) -> Result<()> {
                 r.mean_return,
                 r.mean_success_time
             );
-            let path = out.unwrap_or(run).join("eval.json");
-            std::fs::write(&path, serde_json::to_string_pretty(&ev)?)
-                .with_context(|| format!("writing {}", path.display()))?;
-            println!("wrote {}", path.display());
+            write_json(&out.unwrap_or(run).join("eval.json"), &ev)
+        }
+        Command::Eval { policy: Some(policy), contract, robot, scenario, episodes, seed, out, threads, .. } => {
+            eval_policy(&policy, contract.as_deref(), robot, scenario, episodes, seed, out, threads)
+        }
+        Command::Eval { .. } => anyhow::bail!("give --run DIR or --policy FILE"),
+        Command::Export { run, out, checkpoint } => {
+            let out = out.unwrap_or_else(|| run.join("policy.onnx"));
+            let which = match checkpoint.as_deref() {
+                None => None,
+                Some(c @ ("best" | "checkpoint")) => Some(c),
+                Some(other) => anyhow::bail!("--checkpoint `{other}`: expected `best` or `checkpoint`"),
+            };
+            let used = match which {
+                Some(w) => {
+                    let (bytes, _) = rlnav_train::export::export_run(&run, w)?;
+                    std::fs::write(&out, bytes).with_context(|| format!("writing {}", out.display()))?;
+                    w
+                }
+                None => rlnav_train::export::write_policy(&run, &out)?,
+            };
+            println!("exported {}/{used} to {}", run.display(), out.display());
+            Ok(())
+        }
+        Command::Inspect { policy, contract } => inspect(&policy, contract.as_deref()),
+        Command::Latency { env, controller, cycles } => {
+            anyhow::ensure!(cycles > 0, "--cycles must be at least 1");
+            let setup = env.setup()?;
+            let mut c = rlnav_bench::controllers::by_name(&controller)?;
+            let r = rlnav_bench::latency::measure_latency(c.as_mut(), setup, cycles, cycles / 10, 0)?;
+            println!(
+                "{}: {} cycles on {}-beam scans: p50 {:.1} µs, p99 {:.1} µs, mean {:.1} µs, max {:.1} µs",
+                r.controller, r.cycles, r.beams, r.p50_us, r.p99_us, r.mean_us, r.max_us
+            );
+            println!("{}", serde_json::to_string(&r)?);
             Ok(())
         }
         Command::Robot { command: RobotCommand::Import { urdf, out, name } } => robot_import(&urdf, out, name),
@@ -480,5 +562,146 @@ fn render(
     let style = Style { size, beam_stride, trail: episode };
     scene.write(out, &frames, &style, 300, speedup)?;
     println!("{summary}\nwrote {}", out.display());
+    Ok(())
+}
+
+fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    std::fs::write(path, serde_json::to_string_pretty(value)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
+}
+
+/// `eval.json` of `rlnav eval --policy`.
+#[derive(serde::Serialize)]
+struct PolicyEvaluation {
+    policy: String,
+    contract: rlnav_policy::PolicyContract,
+    scenario: String,
+    robot: String,
+    seed: u64,
+    summary: rlnav_bench::evaluate::EvalSummary,
+    episodes: Vec<rlnav_sim::EpisodeStats>,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn eval_policy(
+    policy: &std::path::Path,
+    contract: Option<&std::path::Path>,
+    robot: Option<String>,
+    scenario: Option<String>,
+    episodes: usize,
+    seed: u64,
+    out: Option<PathBuf>,
+    threads: usize,
+) -> Result<()> {
+    use rlnav_policy::PolicyRunner;
+    anyhow::ensure!(episodes > 0, "--episodes must be at least 1");
+    // Load once up front: a bad file or contract fails before any episode.
+    let runner = PolicyRunner::load(policy, contract)?;
+    let c = runner.contract().clone();
+    let scenario = ScenarioSpec::load(scenario.as_deref().unwrap_or("static-room"))?;
+    let robot_name = robot.unwrap_or_else(|| {
+        if rlnav_sim::robot::ROBOT_PRESETS.iter().any(|(n, _)| *n == c.robot) {
+            c.robot.clone()
+        } else {
+            scenario.robot.clone()
+        }
+    });
+    let robot = RobotSpec::load(&robot_name)?;
+    // rlnav's task, run at the policy's rate and with its action limits (the simulator must
+    // not clip commands the policy is allowed to give).
+    let task = TaskConfig {
+        control_period: c.control_period,
+        action: rlnav_sim::task::ActionConfig { linear: c.action.linear, angular: c.action.angular },
+        ..Default::default()
+    };
+    let setup = Arc::new(EnvSetup::new(scenario, robot, task)?);
+    let name = setup.scenario.spec().name.clone();
+    let (summary, stats) = rlnav_bench::evaluate::evaluate_controller(
+        setup.clone(),
+        || PolicyRunner::load(policy, contract).map(|r| Box::new(r) as Box<dyn rlnav_sim::Controller>),
+        episodes,
+        seed,
+        threads.max(1),
+    )
+    .map_err(|e| anyhow::anyhow!(e))?;
+    println!(
+        "{} ({}) on {name} with {} ({episodes} episodes, seed {seed})",
+        policy.display(),
+        c.task,
+        setup.robot.name
+    );
+    println!(
+        "{:<10} {:>8} {:>9} {:>8} {:>10} {:>10} {:>10}",
+        "", "success", "collision", "timeout", "task_time", "min_lidar", "speed"
+    );
+    println!(
+        "{:<10} {:>7.1}% {:>8.1}% {:>7.1}% {:>9.1}s {:>9.2}m {:>7.2}m/s",
+        "",
+        100.0 * summary.success_rate,
+        100.0 * summary.collision_rate,
+        100.0 * summary.timeout_rate,
+        summary.mean_task_time,
+        summary.mean_min_range,
+        summary.mean_speed
+    );
+    let ev = PolicyEvaluation {
+        policy: policy.display().to_string(),
+        contract: c,
+        scenario: name,
+        robot: setup.robot.name.clone(),
+        seed,
+        summary,
+        episodes: stats,
+    };
+    write_json(&out.unwrap_or_else(|| PathBuf::from(".")).join("eval.json"), &ev)
+}
+
+fn inspect(policy: &std::path::Path, contract: Option<&std::path::Path>) -> Result<()> {
+    use rlnav_policy::runner::{embedded_contract, graph_io, read_model};
+    let file = policy.display().to_string();
+    let proto = read_model(policy)?;
+    println!(
+        "{file}: producer {} {}, opset {:?}",
+        proto.producer_name,
+        proto.producer_version,
+        proto.opset_import.iter().map(|o| o.version).collect::<Vec<_>>()
+    );
+    let (inputs, outputs) = graph_io(&proto);
+    for i in &inputs {
+        let dims = rlnav_policy::runner::input_dims(&proto, i).unwrap_or_default();
+        let dims: Vec<String> = dims.iter().map(|d| d.map_or("batch".to_string(), |v| v.to_string())).collect();
+        println!("  input  {i} [{}]", dims.join(", "));
+    }
+    for o in &outputs {
+        println!("  output {o}");
+    }
+    let c = match contract {
+        Some(p) => Some(rlnav_policy::PolicyContract::from_file(p)?),
+        None => embedded_contract(&proto, &file)?,
+    };
+    match c {
+        Some(c) => {
+            println!("contract ({}):", if contract.is_some() { "side file" } else { "embedded" });
+            for line in c.to_yaml().lines() {
+                println!("  {line}");
+            }
+            // Load it for real: the contract must fit the graph.
+            rlnav_policy::runner::PolicyRunner::from_proto(&file, &proto, c)?;
+            println!(
+                "the model fits its contract ({} observation values)",
+                rlnav_policy::runner::input_dims(&proto, &inputs[0]).map_or(0, |d| d
+                    .last()
+                    .copied()
+                    .flatten()
+                    .unwrap_or(0))
+            );
+        }
+        None => println!("no contract in metadata_props (give --contract FILE)"),
+    }
     Ok(())
 }

@@ -13,9 +13,10 @@ pub const CONTRACT_KEY: &str = "rlnav.contract";
 /// Version of the contract format this build writes and reads.
 pub const CONTRACT_FORMAT: u32 = 1;
 
-/// The scan the observation's lidar term is built from, before pooling: `beams` rays
-/// counter-clockwise from `angle_min`, in a frame aligned with `base_link` (an incoming scan
-/// is rotated by its mount yaw and re-sampled to this geometry).
+/// The scan the observation's lidar term is built from, before pooling: `beams` rays across
+/// `[angle_min, angle_max]`, counter-clockwise from `angle_min` (ROS's order) or clockwise
+/// from `angle_max`, in a frame aligned with `base_link` (an incoming scan is rotated by its
+/// mount yaw and re-sampled to this geometry).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ScanContract {
@@ -29,9 +30,41 @@ pub struct ScanContract {
     pub range_min: f32,
     /// Readings above this are no return (m).
     pub range_max: f32,
+    /// Beam order (default counter-clockwise).
+    #[serde(default)]
+    pub direction: BeamOrder,
+}
+
+/// Order of the beams in a scan.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BeamOrder {
+    /// From `angle_min`, counter-clockwise (`sensor_msgs/LaserScan`).
+    #[default]
+    CounterClockwise,
+    /// From `angle_max`, clockwise.
+    Clockwise,
 }
 
 impl ScanContract {
+    /// Angle (base frame) of contract beam `j`.
+    pub fn beam_angle(&self, j: usize) -> f32 {
+        let spec = self.lidar_spec();
+        match self.direction {
+            BeamOrder::CounterClockwise => spec.beam_angle(j),
+            BeamOrder::Clockwise if spec.is_full_circle() => spec.angle_max - j as f32 * spec.angle_increment(),
+            BeamOrder::Clockwise => spec.beam_angle(self.beams - 1 - j),
+        }
+    }
+
+    /// The contract beam of counter-clockwise index `k`.
+    pub fn from_ccw(&self, k: usize) -> usize {
+        match self.direction {
+            BeamOrder::CounterClockwise => k,
+            BeamOrder::Clockwise if self.lidar_spec().is_full_circle() => (self.beams - k) % self.beams,
+            BeamOrder::Clockwise => self.beams - 1 - k,
+        }
+    }
     /// The scan geometry of a simulated lidar.
     pub fn of(spec: &LidarSpec) -> Self {
         Self {
@@ -40,6 +73,7 @@ impl ScanContract {
             angle_max: spec.angle_max,
             range_min: spec.range_min,
             range_max: spec.range_max,
+            direction: BeamOrder::CounterClockwise,
         }
     }
 

@@ -17,12 +17,12 @@ use tract_onnx::prelude::*;
 #[derive(Debug, thiserror::Error)]
 pub enum PolicyError {
     /// The file could not be read.
-    #[error("{file}: cannot read: {source}")]
+    #[error("{file}: cannot read: {error}")]
     Io {
         /// The file.
         file: String,
-        /// What the OS said.
-        source: std::io::Error,
+        /// What the OS said (in the message, not chained, so that it is said once).
+        error: std::io::Error,
     },
     /// Not an ONNX model tract can load.
     #[error("{file}: not a loadable ONNX model: {message}")]
@@ -132,7 +132,7 @@ pub fn input_dims(proto: &pb::ModelProto, name: &str) -> Option<Vec<Option<i64>>
 /// Reads an ONNX file's protobuf.
 pub fn read_model(path: &Path) -> Result<pb::ModelProto, PolicyError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| PolicyError::Io { file: file.clone(), source })?;
+    let bytes = std::fs::read(path).map_err(|error| PolicyError::Io { file: file.clone(), error })?;
     tract_onnx::onnx()
         .proto_model_for_read(&mut bytes.as_slice())
         .map_err(|e| PolicyError::Model { file, message: format!("{e:#}") })

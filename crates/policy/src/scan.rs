@@ -1,5 +1,5 @@
 //! Re-sampling a robot's scan to the geometry a policy was trained on: any beam count, start
-//! angle, field of view and mount rotation in, the contract's beams out.
+//! angle, field of view and mount rotation in, the contract's beams (in its order) out.
 //!
 //! Each incoming beam is rotated into `base_link` by the lidar's mount yaw and falls into the
 //! contract beam whose angular cell contains it; a contract beam takes the minimum of its
@@ -91,13 +91,14 @@ impl ScanAdapter {
             let rel =
                 if full { wrap_angle(phi - spec.angle_min).rem_euclid(TAU) } else { wrap_angle(phi - spec.angle_min) };
             let k = (rel / inc_c).round();
-            if full {
-                Some(k as usize % m)
+            let k = if full {
+                k as usize % m
             } else if k >= 0.0 && (k as usize) < m {
-                Some(k as usize)
+                k as usize
             } else {
-                None
-            }
+                return None;
+            };
+            Some(contract.from_ccw(k))
         };
         let angle_in = |i: usize| mount_yaw + scan.angle_min + i as f32 * scan.angle_increment;
         let bin: Vec<Option<u32>> = (0..n_in).map(|i| index_of(angle_in(i)).map(|k| k as u32)).collect();
@@ -113,7 +114,7 @@ impl ScanAdapter {
         if !identity {
             // Incoming beams sorted by angle for the nearest-beam search.
             for j in (0..m).filter(|j| !hit[*j]) {
-                let theta = spec.beam_angle(j);
+                let theta = contract.beam_angle(j);
                 let rel = wrap_angle(theta - mount_yaw - scan.angle_min).rem_euclid(TAU);
                 let k = (rel / scan.angle_increment).round() as usize;
                 let candidates = [k.checked_sub(1), Some(k), Some(k + 1)];

@@ -77,7 +77,7 @@ impl BarnSet {
     /// Reads a BARN data file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { file: file.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|error| ConfigError::Io { file: file.clone(), error })?;
         let data: BarnFile = serde_json::from_str(&text)
             .map_err(|e| ConfigError::Parse { file: file.clone(), message: e.to_string() })?;
         let a = &data.about;

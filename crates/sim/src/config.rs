@@ -8,12 +8,12 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     /// The file could not be read.
-    #[error("{file}: cannot read: {source}")]
+    #[error("{file}: cannot read: {error}")]
     Io {
         /// The file.
         file: String,
-        /// What the OS said.
-        source: std::io::Error,
+        /// What the OS said (in the message, not chained, so that it is said once).
+        error: std::io::Error,
     },
     /// The YAML did not parse or did not match the schema (unknown key, wrong type...).
     /// serde_norway's message names the key path, the line and the column.
@@ -123,7 +123,7 @@ pub fn from_yaml_str<T: DeserializeOwned + Validate>(file: &str, text: &str) -> 
 /// Reads and parses a YAML file.
 pub fn from_yaml_file<T: DeserializeOwned + Validate>(path: &Path) -> Result<T, ConfigError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { file: file.clone(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|error| ConfigError::Io { file: file.clone(), error })?;
     from_yaml_str(&file, &text)
 }
 

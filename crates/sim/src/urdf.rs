@@ -19,12 +19,12 @@ use urdf_rs::{Geometry, JointType};
 #[derive(Debug, thiserror::Error)]
 pub enum UrdfError {
     /// The file could not be read.
-    #[error("{file}: cannot read: {source}")]
+    #[error("{file}: cannot read: {error}")]
     Io {
         /// The file.
         file: String,
-        /// What the OS said.
-        source: std::io::Error,
+        /// What the OS said (in the message, not chained, so that it is said once).
+        error: std::io::Error,
     },
     /// A xacro file.
     #[error("{file}: this is a xacro file; expand it first (`xacro {file} > model.urdf`), xacro is out of scope")]
@@ -130,7 +130,7 @@ const LIDAR_NAMES: &[&str] = &["lidar", "laser", "scan", "hokuyo", "rplidar", "l
 /// Reads a URDF file.
 pub fn import_urdf_file(path: &Path) -> Result<UrdfImport, UrdfError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| UrdfError::Io { file: file.clone(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|error| UrdfError::Io { file: file.clone(), error })?;
     import_urdf(&file, &text)
 }
 

@@ -98,6 +98,12 @@ fn stop_checkpoint_and_resume() {
     }
     steps.sort();
     assert_eq!(steps, (1..=6).map(|e| e * 16 * 32).collect::<Vec<i64>>());
+    // The finished run exported its policy with the contract of its configuration.
+    let runner = rlnav_policy::PolicyRunner::load(&out.join("policy.onnx"), None).unwrap();
+    let c = runner.contract();
+    assert_eq!((c.task.as_str(), c.robot.as_str(), c.obs_dim()), (cfg.name.as_str(), "jetbot", 124));
+    assert_eq!(c.action.linear, cfg.task.action.linear);
+    assert_eq!(c.control_period, cfg.task.control_period);
     let svg = std::fs::read_to_string(out.join("training.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("success rate") && svg.contains("<polyline"), "training.svg drawn");
     std::fs::remove_dir_all(out).ok();
