@@ -10,16 +10,27 @@ struct Counting;
 
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
 
+thread_local! {
+    /// Allocations made by this thread (the harness's own threads may allocate at any time).
+    static MINE: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+fn count() {
+    ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    // `try_with`: during thread teardown the slot may be gone.
+    let _ = MINE.try_with(|c| c.set(c.get() + 1));
+}
+
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -35,7 +46,7 @@ fn stepping_does_not_allocate() {
     // One environment: steps and resets of a fixed world.
     let mut env = NavEnv::new(setup.clone(), 3).unwrap();
     let mut obs = vec![0.0; d];
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = MINE.with(|c| c.get());
     let mut resets = 0;
     for i in 0..5000 {
         let out = env.step([((i % 7) as f32 / 3.0) - 1.0, ((i % 5) as f32 / 2.0) - 1.0]);
@@ -46,7 +57,7 @@ fn stepping_does_not_allocate() {
         }
     }
     assert!(resets > 5);
-    assert_eq!(ALLOCATIONS.load(Ordering::Relaxed) - before, 0, "NavEnv step/reset allocated");
+    assert_eq!(MINE.with(|c| c.get()) - before, 0, "NavEnv step/reset allocated");
 
     // The batched environment on its worker threads.
     let mut venv = VecEnv::new(setup, 64, 3, 2).unwrap();
