@@ -612,6 +612,9 @@ fn eval_policy(
         }
     });
     let robot = RobotSpec::load(&robot_name)?;
+    runner.check_lidar(&robot.lidar).with_context(|| {
+        format!("{}: the policy's scan contract does not fit {}'s lidar", policy.display(), robot.name)
+    })?;
     // rlnav's task, run at the policy's rate and with its action limits (the simulator must
     // not clip commands the policy is allowed to give).
     let task = TaskConfig {

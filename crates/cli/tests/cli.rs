@@ -129,3 +129,45 @@ fn robot_import_writes_a_robot_that_runs() {
     let out = rlnav(&["robot", "import", bad]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no pair of drive wheels"));
 }
+
+#[test]
+fn policies_inspect_and_evaluate_with_clear_errors() {
+    let seeds = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/fixtures/seed-policies");
+    let contracts = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts");
+    let model = format!("{seeds}/static_120_new.onnx");
+    let contract = format!("{contracts}/static_120_new.yaml");
+    let out = rlnav(&["inspect", &model, "--contract", &contract]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("input  obs [1, 124]") && text.contains("fits its contract"),
+        "{text}"
+    );
+    let out = rlnav(&["inspect", &model]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("no contract in metadata_props"));
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-eval-{}", std::process::id()));
+    let out = rlnav(&[
+        "eval",
+        "--policy",
+        &model,
+        "--contract",
+        &contract,
+        "--scenario",
+        "empty-room",
+        "--episodes",
+        "4",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let ev: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(ev["episodes"].as_array().unwrap().len(), 4);
+    for key in ["success_rate", "collision_rate", "timeout_rate", "mean_task_time", "mean_min_range", "mean_speed"] {
+        assert!(ev["summary"].get(key).is_some(), "{key}");
+    }
+    // A 270° Jackal cannot feed a 360° policy: refused before any episode.
+    let out = rlnav(&["eval", "--policy", &model, "--contract", &contract, "--robot", "jackal"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("does not fit jackal's lidar") && err.contains("unseen"), "{err}");
+    let out = rlnav(&["eval", "--policy", &model]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--contract"));
+}

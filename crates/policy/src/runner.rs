@@ -261,6 +261,14 @@ impl PolicyRunner {
         &self.source
     }
 
+    /// Whether scans of a lidar like `spec` (as a robot reports them: in its sensor frame, mount
+    /// yaw applied) can feed this policy; call it when the robot is known, before driving.
+    pub fn check_lidar(&self, spec: &rlnav_sim::LidarSpec) -> Result<(), PolicyError> {
+        let scan = rlnav_sim::LaserScan { ranges: vec![1.0; spec.beams], ..rlnav_sim::LaserScan::for_spec(spec) };
+        ScanAdapter::new(&self.contract.scan, &scan, spec.mount.yaw)?;
+        Ok(())
+    }
+
     /// Why the last [`Controller::act`] stopped the robot, if it did.
     pub fn fault(&self) -> Option<&str> {
         self.fault.as_deref()
