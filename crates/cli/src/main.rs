@@ -24,7 +24,8 @@ enum Command {
     Demo {
         #[command(flatten)]
         env: EnvArgs,
-        /// Controller: `greedy` (turn to the goal and drive) or `straight`.
+        /// Controller: `greedy` (turn to the goal and drive), `straight`, `dwa` or
+        /// `rl:POLICY.onnx[:CONTRACT.yaml]`.
         #[arg(long, default_value = "greedy")]
         controller: String,
         /// Episodes to run.
@@ -122,7 +123,7 @@ enum Command {
     Latency {
         #[command(flatten)]
         env: EnvArgs,
-        /// Controller: greedy, straight or rl:POLICY.onnx[:CONTRACT.yaml].
+        /// Controller: greedy, straight, dwa or rl:POLICY.onnx[:CONTRACT.yaml].
         #[arg(long)]
         controller: String,
         /// Cycles to time.
@@ -149,7 +150,7 @@ enum Command {
         /// Run one episode under `--controller` and draw it.
         #[arg(long)]
         episode: bool,
-        /// Controller for `--episode`: greedy or straight.
+        /// Controller for `--episode`: greedy, straight, dwa or rl:POLICY.onnx[:CONTRACT.yaml].
         #[arg(long, default_value = "greedy")]
         controller: String,
         /// Episode seed.
@@ -276,7 +277,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Latency { env, controller, cycles } => {
             anyhow::ensure!(cycles > 0, "--cycles must be at least 1");
             let setup = env.setup()?;
-            let mut c = rlnav_bench::controllers::by_name(&controller)?;
+            let mut c = rlnav_bench::controllers::for_setup(&controller, &setup)?;
             let r = rlnav_bench::latency::measure_latency(c.as_mut(), setup, cycles, cycles / 10, 0)?;
             println!(
                 "{}: {} cycles on {}-beam scans: p50 {:.1} µs, p99 {:.1} µs, mean {:.1} µs, max {:.1} µs",
@@ -314,7 +315,7 @@ fn run(cli: Cli) -> Result<()> {
 
 fn demo(args: &EnvArgs, controller: &str, episodes: usize, seed: u64) -> Result<()> {
     let setup = args.setup()?;
-    let mut c = rlnav_bench::controllers::by_name(controller)?;
+    let mut c = rlnav_bench::controllers::for_setup(controller, &setup)?;
     println!(
         "scenario {} | robot {} | controller {} | {} episodes, seed {seed}",
         setup.scenario.spec().name,
@@ -533,7 +534,7 @@ fn render(
     let setup = args.setup()?;
     let mut env = NavEnv::new(setup.clone(), seed)?;
     let (frames, summary) = if episode {
-        let mut c = rlnav_bench::controllers::by_name(controller)?;
+        let mut c = rlnav_bench::controllers::for_setup(controller, &setup)?;
         let rec = record_episode(&mut env, c.as_mut())?;
         let s = rec.stats;
         let summary = format!(

@@ -171,3 +171,13 @@ fn policies_inspect_and_evaluate_with_clear_errors() {
     let out = rlnav(&["eval", "--policy", &model]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--contract"));
 }
+
+#[test]
+fn dwa_runs_from_the_command_line() {
+    let out = rlnav(&["demo", "--controller", "dwa", "--episodes", "3", "--scenario", "static-room"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("controller dwa") && text.lines().last().unwrap().starts_with("success "), "{text}");
+    let out = rlnav(&["latency", "--controller", "dwa", "--cycles", "50"]);
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains("\"controller\":\"dwa\""));
+}

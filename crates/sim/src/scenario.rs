@@ -451,6 +451,12 @@ impl Scenario {
         &self.spec
     }
 
+    /// The static world when it is the same in every episode (no generator), for planners
+    /// that are given a prior map.
+    pub fn fixed_world(&self) -> Option<&Arc<World>> {
+        self.fixed_world.as_ref().map(|(w, _)| w)
+    }
+
     /// The map, if the scenario has one.
     pub fn grid(&self) -> Option<&Arc<OccupancyGrid>> {
         self.grid.as_ref()

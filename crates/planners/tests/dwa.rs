@@ -1,0 +1,88 @@
+//! The classical baseline: the costmap marks and clears what the lidar sees, A* finds paths
+//! around obstacles, and DWA drives a Jetbot to its goals in the static scenes.
+
+use rlnav_planners::astar;
+use rlnav_planners::costmap::{Costmap, CostmapConfig, INSCRIBED, LETHAL};
+use rlnav_planners::dwa::{Dwa, DwaConfig};
+use rlnav_sim::geometry::{Obstacle, ObstacleSpec, Rect};
+use rlnav_sim::task::{EnvSetup, NavEnv};
+use rlnav_sim::{LaserScan, LidarSpec, Outcome, Pose2, Vec2, World};
+use std::sync::Arc;
+
+fn room() -> Rect {
+    Rect { min: Vec2::splat(-2.0), max: Vec2::splat(2.0) }
+}
+
+#[test]
+fn costmap_marks_inflates_and_clears() {
+    let mut m = Costmap::new(room(), CostmapConfig::default(), 0.2, None);
+    let spec = LidarSpec { beams: 360, ..Default::default() };
+    // Something 1 m ahead, then nothing: marked, then cleared by the beam that passes through.
+    let mut scan = LaserScan { ranges: vec![f32::INFINITY; 360], ..LaserScan::for_spec(&spec) };
+    scan.ranges[180] = 1.0;
+    m.update(&Pose2::default(), &Pose2::default(), &scan);
+    assert_eq!(m.cost_at(Vec2::new(1.0, 0.0)), LETHAL);
+    assert_eq!(m.cost_at(Vec2::new(0.85, 0.0)), INSCRIBED, "within the inscribed radius");
+    let c = m.cost_at(Vec2::new(0.6, 0.0));
+    assert!(c > 0 && c < INSCRIBED, "inflated: {c}");
+    assert_eq!(m.cost_at(Vec2::new(0.0, 0.0)), 0);
+    scan.ranges[180] = f32::INFINITY;
+    m.update(&Pose2::default(), &Pose2::default(), &scan);
+    assert_eq!(m.cost_at(Vec2::new(1.0, 0.0)), 0, "the moving obstacle left no ghost");
+    // The static layer stays.
+    let w = World::new(vec![Obstacle::new(ObstacleSpec::Circle { center: [1.0, 1.0], radius: 0.2 }).unwrap()]);
+    let mut m = Costmap::new(room(), CostmapConfig::default(), 0.2, Some(&w));
+    assert_eq!(m.cost_at(Vec2::new(1.0, 1.0)), LETHAL);
+    m.update(&Pose2::default(), &Pose2::default(), &scan);
+    assert_eq!(m.cost_at(Vec2::new(1.0, 1.0)), LETHAL);
+    assert_eq!(m.cost_at(Vec2::new(5.0, 0.0)), LETHAL, "outside the map");
+}
+
+#[test]
+fn astar_goes_around_a_wall() {
+    let w = World::new(vec![Obstacle::new(ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 1.0] }).unwrap()]);
+    let m = Costmap::new(room(), CostmapConfig::default(), 0.2, Some(&w));
+    let path = astar::plan(&m, Vec2::new(-1.0, -1.0), Vec2::new(1.0, -1.0), 3.0).unwrap();
+    assert!(path.iter().any(|p| p.y > 1.2), "through the gap above the wall");
+    assert!(path.iter().all(|p| m.cost_at(*p) < INSCRIBED));
+    assert!(
+        (path[0] - Vec2::new(-1.0, -1.0)).length() < 0.05
+            && (*path.last().unwrap() - Vec2::new(1.0, -1.0)).length() < 0.05
+    );
+    // Walled off completely: no path.
+    let sealed = World::new(vec![Obstacle::new(ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 2.0] }).unwrap()]);
+    let m = Costmap::new(room(), CostmapConfig::default(), 0.2, Some(&sealed));
+    assert!(astar::plan(&m, Vec2::new(-1.0, -1.0), Vec2::new(1.0, -1.0), 3.0).is_none());
+}
+
+/// DWA with the task's limits and the scene's static map, as the benchmark will set it up.
+fn dwa_for(env: &NavEnv) -> Dwa {
+    let s = env.setup();
+    let cfg = DwaConfig {
+        robot_radius: s.footprint.radius().max(s.task.collision_range) + 0.03,
+        linear: s.task.action.linear,
+        max_angular: s.task.action.angular[1],
+        linear_accel: s.robot.max_linear_accel,
+        angular_accel: s.robot.max_angular_accel,
+        control_period: s.task.control_period,
+        ..Default::default()
+    };
+    let a = s.scenario.area();
+    let bounds = Rect { min: a.min - Vec2::splat(0.5), max: a.max + Vec2::splat(0.5) };
+    Dwa::new(cfg, bounds, Some(env.world().clone()))
+}
+
+#[test]
+fn dwa_reaches_goals_in_the_static_room() {
+    let setup = Arc::new(EnvSetup::from_scenario_name("static-room").unwrap());
+    let (mut wins, n) = (0, 30);
+    for k in 0..n {
+        let mut env = NavEnv::new(setup.clone(), 4000 + k).unwrap();
+        let mut dwa = dwa_for(&env);
+        let s = env.run_episode(&mut dwa).unwrap();
+        wins += (s.outcome == Outcome::Success) as u32;
+    }
+    let rate = wins as f32 / n as f32;
+    eprintln!("DWA success in static-room: {rate:.2}");
+    assert!(rate >= 0.8, "DWA reaches {rate:.2} of static-room goals, expected >= 0.80");
+}
