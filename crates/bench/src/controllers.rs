@@ -2,11 +2,10 @@
 //! classical baseline, set up for the scenario, robot and task), and `rl:POLICY.onnx` (or
 //! `rl:POLICY.onnx:CONTRACT.yaml` for a model with a side contract).
 
-use rlnav_planners::{Dwa, DwaConfig};
+use rlnav_planners::Dwa;
 use rlnav_policy::PolicyRunner;
-use rlnav_sim::geometry::Rect;
 use rlnav_sim::task::EnvSetup;
-use rlnav_sim::{Controller, GreedyGoal, StraightAhead, Vec2};
+use rlnav_sim::{Controller, GreedyGoal, StraightAhead};
 use std::path::Path;
 
 /// The built-in controller names [`by_name`] knows (besides `rl:FILE`).
@@ -43,24 +42,11 @@ pub fn by_name(name: &str) -> Result<Box<dyn Controller>, ControllerError> {
     }
 }
 
-/// A controller by name for episodes of `setup`: as [`by_name`], and `dwa` configured from
-/// the robot and the task (speed limits, accelerations, control period; its centre keeps the
-/// footprint radius or the collision range, whichever is larger, plus 3 cm), with the
-/// scenario's static world as its prior map when every episode shares it.
+/// A controller by name for episodes of `setup`: as [`by_name`], and `dwa` set up for the
+/// scenario, robot and task ([`Dwa::for_setup`]).
 pub fn for_setup(name: &str, setup: &EnvSetup) -> Result<Box<dyn Controller>, ControllerError> {
-    if name != "dwa" {
-        return by_name(name);
+    match name {
+        "dwa" => Ok(Box::new(Dwa::for_setup(setup))),
+        other => by_name(other),
     }
-    let cfg = DwaConfig {
-        robot_radius: setup.footprint.radius().max(setup.task.collision_range) + 0.03,
-        linear: setup.task.action.linear,
-        max_angular: setup.task.action.angular[0].abs().min(setup.task.action.angular[1].abs()),
-        linear_accel: setup.robot.max_linear_accel,
-        angular_accel: setup.robot.max_angular_accel,
-        control_period: setup.task.control_period,
-        ..Default::default()
-    };
-    let a = setup.scenario.area();
-    let bounds = Rect { min: a.min - Vec2::splat(0.5), max: a.max + Vec2::splat(0.5) };
-    Ok(Box::new(Dwa::new(cfg, bounds, setup.scenario.fixed_world().cloned())))
 }

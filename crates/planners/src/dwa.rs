@@ -22,6 +22,7 @@
 use crate::astar;
 use crate::costmap::{Costmap, CostmapConfig, INSCRIBED};
 use rlnav_sim::geometry::Rect;
+use rlnav_sim::task::EnvSetup;
 use rlnav_sim::{Controller, Pose2, RobotObservation, Twist, Vec2, World};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
@@ -119,6 +120,24 @@ impl Default for DwaConfig {
     }
 }
 
+impl DwaConfig {
+    /// The configuration for episodes of `setup`: the task's speed limits and control period,
+    /// the robot's accelerations, and a centre that keeps the footprint radius or the task's
+    /// collision range (whichever is larger) plus 3 cm from obstacles.
+    pub fn for_setup(setup: &EnvSetup) -> Self {
+        let a = &setup.task.action;
+        Self {
+            robot_radius: setup.footprint.radius().max(setup.task.collision_range) + 0.03,
+            linear: a.linear,
+            max_angular: a.angular[0].abs().min(a.angular[1].abs()),
+            linear_accel: setup.robot.max_linear_accel,
+            angular_accel: setup.robot.max_angular_accel,
+            control_period: setup.task.control_period,
+            ..Default::default()
+        }
+    }
+}
+
 /// The DWA controller.
 pub struct Dwa {
     config: DwaConfig,
@@ -147,6 +166,14 @@ impl Dwa {
             last: Twist::default(),
             planned_goal: None,
         }
+    }
+
+    /// A planner for episodes of `setup` ([`DwaConfig::for_setup`]) over the scenario's area,
+    /// with the scenario's static world as its prior map when every episode shares it.
+    pub fn for_setup(setup: &EnvSetup) -> Self {
+        let a = setup.scenario.area();
+        let bounds = Rect { min: a.min - Vec2::splat(0.5), max: a.max + Vec2::splat(0.5) };
+        Self::new(DwaConfig::for_setup(setup), bounds, setup.scenario.fixed_world().cloned())
     }
 
     /// The costmap as it is now.

@@ -3,7 +3,7 @@
 
 use rlnav_planners::astar;
 use rlnav_planners::costmap::{Costmap, CostmapConfig, INSCRIBED, LETHAL};
-use rlnav_planners::dwa::{Dwa, DwaConfig};
+use rlnav_planners::dwa::Dwa;
 use rlnav_sim::geometry::{Obstacle, ObstacleSpec, Rect};
 use rlnav_sim::task::{EnvSetup, NavEnv};
 use rlnav_sim::{LaserScan, LidarSpec, Outcome, Pose2, Vec2, World};
@@ -55,30 +55,13 @@ fn astar_goes_around_a_wall() {
     assert!(astar::plan(&m, Vec2::new(-1.0, -1.0), Vec2::new(1.0, -1.0), 3.0).is_none());
 }
 
-/// DWA with the task's limits and the scene's static map, as the benchmark will set it up.
-fn dwa_for(env: &NavEnv) -> Dwa {
-    let s = env.setup();
-    let cfg = DwaConfig {
-        robot_radius: s.footprint.radius().max(s.task.collision_range) + 0.03,
-        linear: s.task.action.linear,
-        max_angular: s.task.action.angular[1],
-        linear_accel: s.robot.max_linear_accel,
-        angular_accel: s.robot.max_angular_accel,
-        control_period: s.task.control_period,
-        ..Default::default()
-    };
-    let a = s.scenario.area();
-    let bounds = Rect { min: a.min - Vec2::splat(0.5), max: a.max + Vec2::splat(0.5) };
-    Dwa::new(cfg, bounds, Some(env.world().clone()))
-}
-
 #[test]
 fn dwa_reaches_goals_in_the_static_room() {
     let setup = Arc::new(EnvSetup::from_scenario_name("static-room").unwrap());
     let (mut wins, n) = (0, 30);
     for k in 0..n {
         let mut env = NavEnv::new(setup.clone(), 4000 + k).unwrap();
-        let mut dwa = dwa_for(&env);
+        let mut dwa = Dwa::for_setup(env.setup());
         let s = env.run_episode(&mut dwa).unwrap();
         wins += (s.outcome == Outcome::Success) as u32;
     }
