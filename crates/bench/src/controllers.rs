@@ -29,17 +29,33 @@ pub fn by_name(name: &str) -> Result<Box<dyn Controller>, ControllerError> {
         "greedy" => Ok(Box::new(GreedyGoal::default())),
         "straight" => Ok(Box::new(StraightAhead { speed: 0.3 })),
         "dwa" => Err(ControllerError::Unknown("dwa (it needs the scenario: use `for_setup`)".into())),
-        other => match other.strip_prefix("rl:") {
-            Some(spec) => {
-                let (model, contract) = match spec.split_once(".onnx:") {
-                    Some((m, c)) => (format!("{m}.onnx"), Some(c.to_string())),
-                    None => (spec.to_string(), None),
-                };
+        other => match rl_spec(other) {
+            Some((model, contract)) => {
                 Ok(Box::new(PolicyRunner::load(Path::new(&model), contract.as_deref().map(Path::new))?))
             }
             None => Err(ControllerError::Unknown(other.to_string())),
         },
     }
+}
+
+/// `rl:MODEL.onnx[:CONTRACT.yaml]` as (model, contract).
+fn rl_spec(name: &str) -> Option<(String, Option<String>)> {
+    let spec = name.strip_prefix("rl:")?;
+    Some(match spec.split_once(".onnx:") {
+        Some((m, c)) => (format!("{m}.onnx"), Some(c.to_string())),
+        None => (spec.to_string(), None),
+    })
+}
+
+/// Checks, before any episode, that the controller `name` can be made and, for a policy, that
+/// the robot's lidar can feed its scan contract.
+pub fn check(name: &str, setup: &EnvSetup) -> Result<(), ControllerError> {
+    if let Some((model, contract)) = rl_spec(name) {
+        let runner = PolicyRunner::load(Path::new(&model), contract.as_deref().map(Path::new))?;
+        runner.check_lidar(&setup.robot.lidar)?;
+        return Ok(());
+    }
+    for_setup(name, setup).map(|_| ())
 }
 
 /// A controller by name for episodes of `setup`: as [`by_name`], and `dwa` set up for the

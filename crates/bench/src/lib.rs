@@ -5,6 +5,7 @@
 //! - [`episode`]: one episode run and recorded frame by frame;
 //! - [`evaluate`]: a controller through seeded episodes in parallel, with the summary figures;
 //! - [`latency`]: per-cycle compute time of a controller, as percentiles;
+//! - [`suite`]: scenario suites, several controllers on the same seeded episodes, the table;
 //! - [`render`]: pictures of a scene or an episode (PNG, SVG) and animations (GIF).
 
 pub mod controllers;
@@ -12,3 +13,4 @@ pub mod episode;
 pub mod evaluate;
 pub mod latency;
 pub mod render;
+pub mod suite;

@@ -130,6 +130,34 @@ enum Command {
         #[arg(long, default_value_t = 20000)]
         cycles: usize,
     },
+    /// Run controllers on scenario suites with the same seeded episodes and write the
+    /// article's table (report.md, report.json). With no arguments: the shipped policy and
+    /// DWA on paper-static and paper-dynamic.
+    Bench {
+        /// Suite: paper-static, paper-dynamic, random-static, random-dynamic, or a YAML file
+        /// (repeat for several; default paper-static and paper-dynamic).
+        #[arg(long)]
+        suite: Vec<String>,
+        /// Controller: dwa, greedy, straight or rl:POLICY.onnx[:CONTRACT.yaml] (repeat;
+        /// default the shipped policy and dwa).
+        #[arg(long)]
+        controller: Vec<String>,
+        /// Robot for every scenario (default: each scenario's).
+        #[arg(long)]
+        robot: Option<String>,
+        /// Episodes per scenario and controller (default: the suite's).
+        #[arg(long)]
+        episodes: Option<usize>,
+        /// Seed of the episodes.
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Output folder.
+        #[arg(long, default_value = "bench-out")]
+        out: PathBuf,
+    },
     /// Print an ONNX policy's contract and its graph's inputs and outputs.
     Inspect {
         /// The ONNX file.
@@ -274,6 +302,9 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Inspect { policy, contract } => inspect(&policy, contract.as_deref()),
+        Command::Bench { suite, controller, robot, episodes, seed, threads, out } => {
+            bench(suite, controller, robot, episodes, seed, threads, &out)
+        }
         Command::Latency { env, controller, cycles } => {
             anyhow::ensure!(cycles > 0, "--cycles must be at least 1");
             let setup = env.setup()?;
@@ -708,4 +739,45 @@ fn inspect(policy: &std::path::Path, contract: Option<&std::path::Path>) -> Resu
         None => println!("no contract in metadata_props (give --contract FILE)"),
     }
     Ok(())
+}
+
+/// The shipped policy `rlnav bench` runs by default.
+const SHIPPED_POLICY: &str = "policies/jetbot-static-mlp.onnx";
+
+fn bench(
+    suites: Vec<String>,
+    controllers: Vec<String>,
+    robot: Option<String>,
+    episodes: Option<usize>,
+    seed: u64,
+    threads: usize,
+    out: &std::path::Path,
+) -> Result<()> {
+    use rlnav_bench::suite::{SuiteSpec, run_suite};
+    let suites = if suites.is_empty() { vec!["paper-static".into(), "paper-dynamic".into()] } else { suites };
+    let controllers =
+        if controllers.is_empty() { vec![format!("rl:{SHIPPED_POLICY}"), "dwa".into()] } else { controllers };
+    anyhow::ensure!(episodes != Some(0), "--episodes must be at least 1");
+    // Load every suite first: a bad name fails before any episode runs.
+    let specs = suites.iter().map(|s| SuiteSpec::load(s)).collect::<Result<Vec<_>, _>>()?;
+    let mut md = String::new();
+    let mut all = Vec::new();
+    for spec in &specs {
+        let n = episodes.unwrap_or(spec.episodes);
+        eprintln!(
+            "{}: {} scenarios x {} controllers x {n} episodes...",
+            spec.name,
+            spec.scenarios.len(),
+            controllers.len()
+        );
+        let r = run_suite(spec, &controllers, robot.as_deref(), n, seed, threads.max(1))?;
+        let table = r.markdown();
+        println!("{table}");
+        md += &table;
+        md += "\n";
+        all.push(r);
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    std::fs::write(out.join("report.md"), md).with_context(|| format!("writing {}/report.md", out.display()))?;
+    write_json(&out.join("report.json"), &all)
 }

@@ -181,3 +181,29 @@ fn dwa_runs_from_the_command_line() {
     let out = rlnav(&["latency", "--controller", "dwa", "--cycles", "50"]);
     assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains("\"controller\":\"dwa\""));
 }
+
+#[test]
+fn bench_writes_the_report() {
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-bench-{}", std::process::id()));
+    let out = rlnav(&[
+        "bench",
+        "--suite",
+        "paper-dynamic",
+        "--controller",
+        "greedy",
+        "--controller",
+        "dwa",
+        "--episodes",
+        "1",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert_eq!(md.lines().filter(|l| l.starts_with("| paper-dynamic-")).count(), 8, "{md}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+    assert_eq!(json[0]["cells"].as_array().unwrap().len(), 8);
+    let out = rlnav(&["bench", "--suite", "no-such-suite", "--controller", "greedy"]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("unknown suite `no-such-suite`"));
+}

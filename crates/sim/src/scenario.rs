@@ -25,6 +25,14 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
     ("warehouse", include_str!("../../../scenarios/warehouse.yaml")),
     ("people-room", include_str!("../../../scenarios/people-room.yaml")),
+    ("paper-static-1", include_str!("../../../scenarios/paper-static-1.yaml")),
+    ("paper-static-2", include_str!("../../../scenarios/paper-static-2.yaml")),
+    ("paper-static-3", include_str!("../../../scenarios/paper-static-3.yaml")),
+    ("paper-static-4", include_str!("../../../scenarios/paper-static-4.yaml")),
+    ("paper-dynamic-box01", include_str!("../../../scenarios/paper-dynamic-box01.yaml")),
+    ("paper-dynamic-box02", include_str!("../../../scenarios/paper-dynamic-box02.yaml")),
+    ("paper-dynamic-box03", include_str!("../../../scenarios/paper-dynamic-box03.yaml")),
+    ("paper-dynamic-people", include_str!("../../../scenarios/paper-dynamic-people.yaml")),
 ];
 
 /// A walled rectangular arena.
