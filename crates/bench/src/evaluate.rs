@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 use rlnav_sim::task::{EnvSetup, SimError};
 use rlnav_sim::vec_env::env_seed;
-use rlnav_sim::{Controller, EpisodeStats, NavEnv, Outcome};
+use rlnav_sim::{Controller, EpisodeStats, NavEnv, Outcome, RobotObservation};
 use serde::Serialize;
 use std::sync::Arc;
 
@@ -49,18 +49,60 @@ impl EvalSummary {
     }
 }
 
+/// One episode step by step: after each control step, the time, the position, the distance to
+/// the goal and the smallest lidar range (step 0 is the start).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct EpisodeTrace {
+    /// Seconds since the start.
+    pub time: Vec<f32>,
+    /// Positions `[x, y]`.
+    pub position: Vec<[f32; 2]>,
+    /// Distance to the goal (m).
+    pub distance: Vec<f32>,
+    /// Smallest lidar range in the scan (m).
+    pub min_range: Vec<f32>,
+}
+
+impl EpisodeTrace {
+    fn push(&mut self, env: &NavEnv, time: f32) {
+        let p = env.pose().position();
+        self.time.push(time);
+        self.position.push([p.x, p.y]);
+        self.distance.push((env.goal() - p).length());
+        self.min_range.push(env.ranges().iter().copied().fold(f32::INFINITY, f32::min));
+    }
+}
+
+/// Runs the environment's current episode to its end under `c`, tracing it.
+pub fn traced_episode(env: &mut NavEnv, c: &mut dyn Controller) -> (EpisodeStats, EpisodeTrace) {
+    c.reset();
+    let period = env.setup().task.control_period;
+    let mut trace = EpisodeTrace::default();
+    trace.push(env, 0.0);
+    let mut obs = RobotObservation::default();
+    loop {
+        env.robot_observation(&mut obs);
+        let out = env.step_twist(c.act(&obs));
+        trace.push(env, trace.time.len() as f32 * period);
+        if out.terminated || out.truncated {
+            return (env.last_episode().expect("set when an episode ends"), trace);
+        }
+    }
+}
+
 /// Runs `episodes` episodes of `setup`, episode `k` seeded with `env_seed(seed, k)` (so the
 /// same seed gives the same scenes to every controller, whatever the thread count), each
-/// worker with its own controller from `make`.
+/// worker with its own controller from `make`. Returns the summary, every episode's figures
+/// and its trace.
 pub fn evaluate_controller<E: std::fmt::Display + Send>(
     setup: Arc<EnvSetup>,
     make: impl Fn() -> Result<Box<dyn Controller>, E> + Sync,
     episodes: usize,
     seed: u64,
     threads: usize,
-) -> Result<(EvalSummary, Vec<EpisodeStats>), String> {
+) -> Result<(EvalSummary, Vec<EpisodeStats>, Vec<EpisodeTrace>), String> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("thread pool: {e}"))?;
-    let stats: Result<Vec<EpisodeStats>, String> = pool.install(|| {
+    let runs: Result<Vec<(EpisodeStats, EpisodeTrace)>, String> = pool.install(|| {
         (0..episodes)
             .into_par_iter()
             .map_init(
@@ -68,11 +110,11 @@ pub fn evaluate_controller<E: std::fmt::Display + Send>(
                 |c, k| {
                     let c = c.as_mut().map_err(|e| e.clone())?;
                     let mut env = NavEnv::new(setup.clone(), env_seed(seed, k)).map_err(|e: SimError| e.to_string())?;
-                    env.run_episode(c.as_mut()).map_err(|e| e.to_string())
+                    Ok(traced_episode(&mut env, c.as_mut()))
                 },
             )
             .collect()
     });
-    let stats = stats?;
-    Ok((EvalSummary::of(&stats), stats))
+    let (stats, traces): (Vec<_>, Vec<_>) = runs?.into_iter().unzip();
+    Ok((EvalSummary::of(&stats), stats, traces))
 }

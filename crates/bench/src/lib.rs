@@ -6,11 +6,13 @@
 //! - [`evaluate`]: a controller through seeded episodes in parallel, with the summary figures;
 //! - [`latency`]: per-cycle compute time of a controller, as percentiles;
 //! - [`suite`]: scenario suites, several controllers on the same seeded episodes, the table;
+//! - [`plots`]: distance to goal over time and trajectories coloured by lidar range (SVG);
 //! - [`render`]: pictures of a scene or an episode (PNG, SVG) and animations (GIF).
 
 pub mod controllers;
 pub mod episode;
 pub mod evaluate;
 pub mod latency;
+pub mod plots;
 pub mod render;
 pub mod suite;

@@ -100,54 +100,11 @@ impl Scene<'_> {
         style: &Style,
     ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
         root.fill(&WHITE)?;
-        let (w, h) = root.dim_in_pixel();
-        let v = self.view;
-        let area = root.apply_coord_spec(Cartesian2d::<RangedCoordf32, RangedCoordf32>::new(
-            v.min.x..v.max.x,
-            v.min.y..v.max.y,
-            // Pixel rows grow downwards; y grows upwards.
-            (0..w as i32, h as i32..0),
-        ));
+        let area = self.world_area(root);
         let px = |r: f32| ((r * self.scale(style)).round() as i32).max(1);
         let pt = |p: Vec2| (p.x, p.y);
 
-        if let Some(grid) = self.world.grid() {
-            // Horizontal runs of equal cells, one polygon each.
-            let (gw, gh) = grid.size();
-            let r = grid.resolution();
-            for iy in 0..gh {
-                let mut ix = 0;
-                while ix < gw {
-                    let c = grid.cell(ix, iy);
-                    let start = ix;
-                    while ix < gw && grid.cell(ix, iy) == c {
-                        ix += 1;
-                    }
-                    let colour = match c {
-                        Cell::Free => continue,
-                        Cell::Occupied => OCCUPIED,
-                        Cell::Unknown => UNKNOWN,
-                    };
-                    let (x0, x1, y0, y1) = (start as f32 * r, ix as f32 * r, iy as f32 * r, (iy + 1) as f32 * r);
-                    let corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
-                        .map(|(x, y)| pt(grid.origin().to_parent(Vec2::new(x, y))));
-                    area.draw(&Polygon::new(corners.to_vec(), colour.filled()))?;
-                }
-            }
-        }
-        for o in self.world.obstacles() {
-            match &o.primitive {
-                Primitive::Circle { center, radius } => {
-                    area.draw(&Circle::new(pt(*center), px(*radius), OBSTACLE.filled()))?
-                }
-                Primitive::Polygon { vertices } => {
-                    area.draw(&Polygon::new(vertices.iter().map(|p| pt(*p)).collect::<Vec<_>>(), OBSTACLE.filled()))?
-                }
-                Primitive::Segment { a, b } => {
-                    area.draw(&PathElement::new(vec![pt(*a), pt(*b)], OBSTACLE.stroke_width(3)))?
-                }
-            }
-        }
+        self.draw_world(&area, style)?;
 
         // The goal and its tolerance.
         area.draw(&Circle::new(pt(frame.goal), px(self.goal_tolerance), GOAL.stroke_width(2)))?;
@@ -191,6 +148,109 @@ impl Scene<'_> {
 
         self.draw_robot(&area, &frame.pose, style)?;
         Ok(())
+    }
+
+    /// The world-coordinate drawing area of a root area.
+    fn world_area<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> DrawingArea<DB, Cartesian2d<RangedCoordf32, RangedCoordf32>> {
+        let (w, h) = root.dim_in_pixel();
+        let v = self.view;
+        // Pixel rows grow downwards; y grows upwards.
+        root.apply_coord_spec(Cartesian2d::<RangedCoordf32, RangedCoordf32>::new(
+            v.min.x..v.max.x,
+            v.min.y..v.max.y,
+            (0..w as i32, h as i32..0),
+        ))
+    }
+
+    /// Map cells and static obstacles.
+    fn draw_world<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Cartesian2d<RangedCoordf32, RangedCoordf32>>,
+        style: &Style,
+    ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        let px = |r: f32| ((r * self.scale(style)).round() as i32).max(1);
+        let pt = |p: Vec2| (p.x, p.y);
+        if let Some(grid) = self.world.grid() {
+            // Horizontal runs of equal cells, one polygon each.
+            let (gw, gh) = grid.size();
+            let r = grid.resolution();
+            for iy in 0..gh {
+                let mut ix = 0;
+                while ix < gw {
+                    let c = grid.cell(ix, iy);
+                    let start = ix;
+                    while ix < gw && grid.cell(ix, iy) == c {
+                        ix += 1;
+                    }
+                    let colour = match c {
+                        Cell::Free => continue,
+                        Cell::Occupied => OCCUPIED,
+                        Cell::Unknown => UNKNOWN,
+                    };
+                    let (x0, x1, y0, y1) = (start as f32 * r, ix as f32 * r, iy as f32 * r, (iy + 1) as f32 * r);
+                    let corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+                        .map(|(x, y)| pt(grid.origin().to_parent(Vec2::new(x, y))));
+                    area.draw(&Polygon::new(corners.to_vec(), colour.filled()))?;
+                }
+            }
+        }
+        for o in self.world.obstacles() {
+            match &o.primitive {
+                Primitive::Circle { center, radius } => {
+                    area.draw(&Circle::new(pt(*center), px(*radius), OBSTACLE.filled()))?
+                }
+                Primitive::Polygon { vertices } => {
+                    area.draw(&Polygon::new(vertices.iter().map(|p| pt(*p)).collect::<Vec<_>>(), OBSTACLE.filled()))?
+                }
+                Primitive::Segment { a, b } => {
+                    area.draw(&PathElement::new(vec![pt(*a), pt(*b)], OBSTACLE.stroke_width(3)))?
+                }
+            }
+        }
+
+        Ok(())
+    }
+
+    /// Writes an SVG of the world with paths drawn over it, each point coloured by the
+    /// smallest lidar range at that moment (the article's "safety spectrum": red at `red` m or
+    /// closer, green at `green` m or farther), each path starting at a hollow circle.
+    pub fn write_paths_svg(
+        &self,
+        path: &Path,
+        paths: &[Vec<(Vec2, f32)>],
+        red: f32,
+        green: f32,
+        style: &Style,
+    ) -> Result<(), RenderError> {
+        let file = path.display().to_string();
+        let err = |e: String| RenderError::Write { file: file.clone(), message: e };
+        let root = SVGBackend::new(path, self.pixels(style)).into_drawing_area();
+        let draw = || -> Result<(), DrawingAreaErrorKind<std::io::Error>> {
+            root.fill(&WHITE)?;
+            let area = self.world_area(&root);
+            self.draw_world(&area, style)?;
+            for p in paths {
+                if let Some(first) = p.first() {
+                    area.draw(&Circle::new((first.0.x, first.0.y), 4, ROBOT.stroke_width(1)))?;
+                }
+                for w in p.windows(2) {
+                    let t = ((w[1].1 - red) / (green - red)).clamp(0.0, 1.0) as f64;
+                    // Red through yellow to green.
+                    let colour =
+                        RGBColor((255.0 * (2.0 - 2.0 * t).min(1.0)) as u8, (200.0 * (2.0 * t).min(1.0)) as u8, 40);
+                    area.draw(&PathElement::new(
+                        vec![(w[0].0.x, w[0].0.y), (w[1].0.x, w[1].0.y)],
+                        colour.stroke_width(2),
+                    ))?;
+                }
+            }
+            Ok(())
+        };
+        draw().map_err(|e| err(e.to_string()))?;
+        root.present().map_err(|e| err(e.to_string()))
     }
 
     fn draw_robot<DB: DrawingBackend>(

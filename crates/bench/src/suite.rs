@@ -92,6 +92,8 @@ pub struct CellResult {
     pub summary: EvalSummary,
     /// Every episode, in seed order.
     pub episodes: Vec<EpisodeStats>,
+    /// Every episode step by step (distance to goal over time, path, lidar minimum).
+    pub traces: Vec<crate::evaluate::EpisodeTrace>,
 }
 
 /// A whole suite under several controllers.
@@ -105,6 +107,17 @@ pub struct SuiteResult {
     pub seed: u64,
     /// Results, scenario-major.
     pub cells: Vec<CellResult>,
+}
+
+/// The suite's scenarios compiled for `robot` (default: each scenario's) and the default task.
+pub fn suite_setups(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<Arc<EnvSetup>>, BenchError> {
+    let mut setups = Vec::new();
+    for name in &suite.scenarios {
+        let spec = ScenarioSpec::load(name)?;
+        let robot = RobotSpec::load(robot.unwrap_or(&spec.robot))?;
+        setups.push(Arc::new(EnvSetup::new(spec, robot, TaskConfig::default())?));
+    }
+    Ok(setups)
 }
 
 /// Runs every controller on every scenario of `suite` with the same `episodes` seeded
@@ -121,12 +134,7 @@ pub fn run_suite(
     if controllers.is_empty() {
         return Err(BenchError::NoControllers);
     }
-    let mut setups = Vec::new();
-    for name in &suite.scenarios {
-        let spec = ScenarioSpec::load(name)?;
-        let robot = RobotSpec::load(robot.unwrap_or(&spec.robot))?;
-        setups.push(Arc::new(EnvSetup::new(spec, robot, TaskConfig::default())?));
-    }
+    let setups = suite_setups(suite, robot)?;
     let bad = |name: &str, message: &str| BenchError::Controller { name: name.into(), message: message.into() };
     for c in controllers {
         for setup in &setups {
@@ -137,13 +145,15 @@ pub fn run_suite(
     let mut cells = Vec::new();
     for setup in &setups {
         for c in controllers {
-            let (summary, eps) = evaluate_controller(setup.clone(), || for_setup(c, setup), episodes, seed, threads)
-                .map_err(BenchError::Run)?;
+            let (summary, eps, traces) =
+                evaluate_controller(setup.clone(), || for_setup(c, setup), episodes, seed, threads)
+                    .map_err(BenchError::Run)?;
             cells.push(CellResult {
                 scenario: setup.scenario.spec().name.clone(),
                 controller: c.clone(),
                 summary,
                 episodes: eps,
+                traces,
             });
         }
     }

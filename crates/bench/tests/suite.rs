@@ -22,6 +22,24 @@ fn suites_run_controllers_on_the_same_episodes() {
         assert_eq!(d(&pair[0]), d(&pair[1]));
         assert!(d(&pair[0]).iter().all(|x| (4.5..=5.5).contains(x)), "goal about 4.7 m away: {:?}", d(&pair[0]));
     }
+    // Traces: one per episode, starting at the start distance and ending at the final one.
+    for c in &r.cells {
+        for (t, e) in c.traces.iter().zip(&c.episodes) {
+            assert_eq!(t.distance.len() as u32, e.length + 1);
+            assert!((t.distance[0] - e.initial_distance).abs() < 1e-5);
+            assert!((t.distance.last().unwrap() - e.final_distance).abs() < 1e-5);
+        }
+    }
+    // Figures: distance over time per scenario, trajectories per scenario and controller.
+    let dir = std::env::temp_dir().join(format!("rlnav-bench-figs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let setups = rlnav_bench::suite::suite_setups(&suite, None).unwrap();
+    let files = rlnav_bench::plots::write_suite_figures(&r, &setups, &dir).unwrap();
+    assert_eq!(files.len(), 4 * (1 + 2));
+    for f in &files {
+        let svg = std::fs::read_to_string(f).unwrap();
+        assert!(svg.starts_with("<svg") && (svg.contains("<polyline") || svg.contains("<path")), "{}", f.display());
+    }
     let md = r.markdown();
     assert_eq!(md.lines().filter(|l| l.starts_with("| paper-static-")).count(), 8, "{md}");
     assert!(md.contains("min lidar range (m)") && md.contains("distance to target (m)"));
@@ -39,4 +57,21 @@ fn bad_benchmarks_fail_before_any_episode() {
     let empty = rlnav_sim::config::from_yaml_str::<SuiteSpec>("empty.yaml", "name: e\nscenarios: []\n").unwrap_err();
     assert!(empty.to_string().contains("empty.yaml") && empty.to_string().contains("at least one scenario"));
     assert!(SuiteSpec::load("nope").unwrap_err().to_string().contains("paper-static"));
+}
+
+#[test]
+fn distance_band_holds_finished_episodes_at_their_final_distance() {
+    use rlnav_bench::evaluate::EpisodeTrace;
+    let t = |d: &[f32]| EpisodeTrace {
+        time: (0..d.len()).map(|k| k as f32 * 0.1).collect(),
+        position: vec![[0.0, 0.0]; d.len()],
+        distance: d.to_vec(),
+        min_range: vec![1.0; d.len()],
+    };
+    let band = rlnav_bench::plots::distance_band(&[t(&[4.0, 2.0]), t(&[4.0, 3.0, 2.0, 0.0])]);
+    let means: Vec<f32> = band.iter().map(|b| b.1).collect();
+    assert_eq!(means, vec![4.0, 2.5, 2.0, 1.0]);
+    assert!((band[3].2 - 1.0).abs() < 1e-6 && (band[3].0 - 0.3).abs() < 1e-6);
+    assert_eq!(rlnav_bench::plots::slug("rl:policies/jetbot-static-mlp.onnx"), "jetbot-static-mlp");
+    assert_eq!(rlnav_bench::plots::slug("rl:a/x.onnx:contracts/x.yaml"), "x");
 }

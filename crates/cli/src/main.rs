@@ -656,7 +656,7 @@ fn eval_policy(
     };
     let setup = Arc::new(EnvSetup::new(scenario, robot, task)?);
     let name = setup.scenario.spec().name.clone();
-    let (summary, stats) = rlnav_bench::evaluate::evaluate_controller(
+    let (summary, stats, _) = rlnav_bench::evaluate::evaluate_controller(
         setup.clone(),
         || PolicyRunner::load(policy, contract).map(|r| Box::new(r) as Box<dyn rlnav_sim::Controller>),
         episodes,
@@ -771,6 +771,10 @@ fn bench(
             controllers.len()
         );
         let r = run_suite(spec, &controllers, robot.as_deref(), n, seed, threads.max(1))?;
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        let setups = rlnav_bench::suite::suite_setups(spec, robot.as_deref())?;
+        let figures = rlnav_bench::plots::write_suite_figures(&r, &setups, out).map_err(|e| anyhow::anyhow!(e))?;
+        eprintln!("{}: {} figures in {}", spec.name, figures.len(), out.display());
         let table = r.markdown();
         println!("{table}");
         md += &table;

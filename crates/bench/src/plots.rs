@@ -1,0 +1,127 @@
+//! The benchmark's figures: distance to the goal over time (mean and standard deviation over
+//! episodes, per controller, as the article's figure) and trajectories coloured by the
+//! smallest lidar range (the article's "safety spectrum"), as SVG.
+
+use crate::evaluate::EpisodeTrace;
+use crate::render::{Scene, Style, view_of};
+use crate::suite::SuiteResult;
+use plotters::prelude::*;
+use rlnav_sim::task::EnvSetup;
+use rlnav_sim::{Vec2, World};
+use std::path::{Path, PathBuf};
+
+const COLOURS: [RGBColor; 6] = [
+    RGBColor(30, 90, 200),
+    RGBColor(220, 80, 30),
+    RGBColor(40, 150, 60),
+    RGBColor(150, 60, 170),
+    RGBColor(120, 120, 120),
+    RGBColor(200, 160, 0),
+];
+
+/// `(time, mean, standard deviation)` per control step.
+pub type Band = Vec<(f32, f32, f32)>;
+
+/// Mean and standard deviation of the distance to the goal at each control step; an episode
+/// that has ended keeps its final distance.
+pub fn distance_band(traces: &[EpisodeTrace]) -> Band {
+    let steps = traces.iter().map(|t| t.distance.len()).max().unwrap_or(0);
+    let dt = traces.iter().find_map(|t| t.time.get(1).copied()).unwrap_or(0.1);
+    (0..steps)
+        .map(|k| {
+            let v: Vec<f32> =
+                traces.iter().filter_map(|t| t.distance.get(k.min(t.distance.len().max(1) - 1)).copied()).collect();
+            let m = v.iter().sum::<f32>() / v.len().max(1) as f32;
+            let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f32>() / v.len().max(1) as f32).sqrt();
+            (k as f32 * dt, m, sd)
+        })
+        .collect()
+}
+
+/// `distance_vs_time` for one scenario: one mean line and ±1 σ band per controller.
+pub fn distance_vs_time_svg(out: &Path, title: &str, series: &[(&str, &[EpisodeTrace])]) -> Result<(), String> {
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", out.display());
+    let bands: Vec<(&str, Band)> = series.iter().map(|(n, t)| (*n, distance_band(t))).collect();
+    let t_max = bands.iter().filter_map(|(_, b)| b.last().map(|p| p.0)).fold(1.0f32, f32::max);
+    let d_max = bands.iter().flat_map(|(_, b)| b.iter().map(|p| p.1 + p.2)).fold(1.0f32, f32::max);
+    let root = SVGBackend::new(out, (800, 480)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0f32..t_max, 0f32..d_max * 1.05)
+        .map_err(|e| err(&e))?;
+    chart.configure_mesh().x_desc("time (s)").y_desc("distance to goal (m)").draw().map_err(|e| err(&e))?;
+    for (i, (name, band)) in bands.iter().enumerate() {
+        let c = COLOURS[i % COLOURS.len()];
+        let mut poly: Vec<(f32, f32)> = band.iter().map(|(t, m, s)| (*t, m + s)).collect();
+        poly.extend(band.iter().rev().map(|(t, m, s)| (*t, (m - s).max(0.0))));
+        chart.draw_series(std::iter::once(Polygon::new(poly, c.mix(0.2).filled()))).map_err(|e| err(&e))?;
+        chart
+            .draw_series(LineSeries::new(band.iter().map(|(t, m, _)| (*t, *m)), c.stroke_width(2)))
+            .map_err(|e| err(&e))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+    }
+    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))
+}
+
+/// A file-name-safe form of a controller spec.
+pub fn slug(s: &str) -> String {
+    let spec = s.strip_prefix("rl:").unwrap_or(s);
+    let model = spec.split(".onnx").next().unwrap_or(spec);
+    let name = model.rsplit('/').next().unwrap_or(model);
+    name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect()
+}
+
+/// Writes, for every scenario of `result`, `distance_vs_time_<scenario>.svg` and
+/// `trajectories_<scenario>_<controller>.svg` into `dir`; `setups` are the suite's scenarios in
+/// order. Returns the files written.
+pub fn write_suite_figures(
+    result: &SuiteResult,
+    setups: &[std::sync::Arc<EnvSetup>],
+    dir: &Path,
+) -> Result<Vec<PathBuf>, String> {
+    let mut files = Vec::new();
+    for setup in setups {
+        let name = &setup.scenario.spec().name;
+        let cells: Vec<_> = result.cells.iter().filter(|c| &c.scenario == name).collect();
+        let series: Vec<(&str, &[EpisodeTrace])> =
+            cells.iter().map(|c| (c.controller.as_str(), c.traces.as_slice())).collect();
+        let f = dir.join(format!("distance_vs_time_{name}.svg"));
+        distance_vs_time_svg(&f, &format!("{name}: distance to goal (mean ± 1 sd)"), &series)?;
+        files.push(f);
+        // A scenario whose world changes every episode is drawn without obstacles.
+        let empty = std::sync::Arc::new(World::new(Vec::new()));
+        let world = setup.scenario.fixed_world().unwrap_or(&empty);
+        let scene = Scene {
+            world,
+            view: view_of(world, setup.scenario.area(), 0.3),
+            footprint: &setup.robot.footprint,
+            lidar: &setup.robot.lidar,
+            goal_tolerance: setup.task.goal_tolerance,
+        };
+        for c in &cells {
+            let paths: Vec<Vec<(Vec2, f32)>> = c
+                .traces
+                .iter()
+                .map(|t| t.position.iter().zip(&t.min_range).map(|(p, r)| (Vec2::new(p[0], p[1]), *r)).collect())
+                .collect();
+            let f = dir.join(format!("trajectories_{name}_{}.svg", slug(&c.controller)));
+            scene
+                .write_paths_svg(
+                    &f,
+                    &paths,
+                    setup.task.collision_range,
+                    1.0,
+                    &Style { size: 700, ..Default::default() },
+                )
+                .map_err(|e| e.to_string())?;
+            files.push(f);
+        }
+    }
+    Ok(files)
+}
