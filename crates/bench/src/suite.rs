@@ -3,6 +3,7 @@
 
 use crate::controllers::{check, for_setup};
 use crate::evaluate::{EvalSummary, evaluate_controller};
+use rlnav_sim::barn::barn_score;
 use rlnav_sim::config::{ConfigError, Invalid, Validate, preset_or_file};
 use rlnav_sim::task::{EnvSetup, SimError, TaskConfig};
 use rlnav_sim::{EpisodeStats, RobotSpec, ScenarioSpec};
@@ -15,6 +16,7 @@ pub const SUITE_PRESETS: &[(&str, &str)] = &[
     ("paper-dynamic", include_str!("../../../suites/paper-dynamic.yaml")),
     ("random-static", include_str!("../../../suites/random-static.yaml")),
     ("random-dynamic", include_str!("../../../suites/random-dynamic.yaml")),
+    ("barn", include_str!("../../../suites/barn.yaml")),
 ];
 
 /// A suite file.
@@ -27,7 +29,12 @@ pub struct SuiteSpec {
     #[serde(default)]
     pub description: String,
     /// Scenario names or files.
+    #[serde(default)]
     pub scenarios: Vec<String>,
+    /// BARN Challenge worlds, run under the challenge's rules (1 m success radius, 100 s, a
+    /// collision is contact) and scored as the challenge scores them.
+    #[serde(default)]
+    pub barn: Option<BarnSuite>,
     /// Episodes per scenario and controller (default 20).
     #[serde(default = "default_episodes")]
     pub episodes: usize,
@@ -37,10 +44,28 @@ fn default_episodes() -> usize {
     20
 }
 
+/// Which BARN worlds a suite runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BarnSuite {
+    /// The BARN data file (`barn_worlds.json`).
+    pub file: String,
+    /// Every `every`-th world of the file, in index order (default 1: all).
+    #[serde(default = "one")]
+    pub every: usize,
+}
+
+fn one() -> usize {
+    1
+}
+
 impl Validate for SuiteSpec {
     fn validate(&self) -> Result<(), Invalid> {
-        if self.scenarios.is_empty() {
-            return Err(Invalid::new("scenarios", "at least one scenario"));
+        if self.scenarios.is_empty() && self.barn.is_none() {
+            return Err(Invalid::new("scenarios", "at least one scenario (or `barn`)"));
+        }
+        if self.barn.as_ref().is_some_and(|b| b.every == 0) {
+            return Err(Invalid::new("barn.every", "at least 1"));
         }
         if self.episodes == 0 {
             return Err(Invalid::new("episodes", "at least 1"));
@@ -90,6 +115,8 @@ pub struct CellResult {
     pub controller: String,
     /// Aggregate figures.
     pub summary: EvalSummary,
+    /// Mean BARN Challenge score over the episodes (BARN worlds only).
+    pub barn_score: Option<f32>,
     /// Every episode, in seed order.
     pub episodes: Vec<EpisodeStats>,
     /// Every episode step by step (distance to goal over time, path, lidar minimum).
@@ -109,13 +136,36 @@ pub struct SuiteResult {
     pub cells: Vec<CellResult>,
 }
 
-/// The suite's scenarios compiled for `robot` (default: each scenario's) and the default task.
+/// The suite's scenarios compiled for `robot` (default: each scenario's) and the default task,
+/// then its BARN worlds under the challenge's rules (1 m success radius, the time limit, a
+/// collision is contact), in the order [`run_suite`] runs them.
 pub fn suite_setups(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<Arc<EnvSetup>>, BenchError> {
+    Ok(suite_setups_scored(suite, robot)?.into_iter().map(|(s, _)| s).collect())
+}
+
+/// A scenario compiled for the run, with its BARN optimal time when it is a BARN world.
+type ScoredSetup = (Arc<EnvSetup>, Option<f32>);
+
+fn suite_setups_scored(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<ScoredSetup>, BenchError> {
     let mut setups = Vec::new();
     for name in &suite.scenarios {
         let spec = ScenarioSpec::load(name)?;
         let robot = RobotSpec::load(robot.unwrap_or(&spec.robot))?;
-        setups.push(Arc::new(EnvSetup::new(spec, robot, TaskConfig::default())?));
+        setups.push((Arc::new(EnvSetup::new(spec, robot, TaskConfig::default())?), None));
+    }
+    if let Some(b) = &suite.barn {
+        let set = rlnav_sim::barn::BarnSet::load(std::path::Path::new(&b.file))?;
+        let base = TaskConfig::default();
+        let task = TaskConfig {
+            goal_tolerance: set.success_radius,
+            max_steps: (set.time_limit / base.control_period).round() as u32,
+            collision_range: 0.0,
+            ..base
+        };
+        for w in set.worlds.iter().step_by(b.every) {
+            let robot = RobotSpec::load(robot.unwrap_or(&w.spec.robot))?;
+            setups.push((Arc::new(EnvSetup::new(w.spec.clone(), robot, task.clone())?), Some(w.optimal_time)));
+        }
     }
     Ok(setups)
 }
@@ -134,16 +184,16 @@ pub fn run_suite(
     if controllers.is_empty() {
         return Err(BenchError::NoControllers);
     }
-    let setups = suite_setups(suite, robot)?;
+    let setups = suite_setups_scored(suite, robot)?;
     let bad = |name: &str, message: &str| BenchError::Controller { name: name.into(), message: message.into() };
     for c in controllers {
-        for setup in &setups {
+        for (setup, _) in &setups {
             check(c, setup)
                 .map_err(|e| bad(c, &format!("{} on {}: {e}", setup.robot.name, setup.scenario.spec().name)))?;
         }
     }
     let mut cells = Vec::new();
-    for setup in &setups {
+    for (setup, optimal) in &setups {
         for c in controllers {
             let (summary, eps, traces) =
                 evaluate_controller(setup.clone(), || for_setup(c, setup), episodes, seed, threads)
@@ -152,12 +202,16 @@ pub fn run_suite(
                 scenario: setup.scenario.spec().name.clone(),
                 controller: c.clone(),
                 summary,
+                barn_score: optimal.map(|o| {
+                    let n = eps.len().max(1) as f32;
+                    eps.iter().map(|e| barn_score(e.outcome == rlnav_sim::Outcome::Success, e.time, o)).sum::<f32>() / n
+                }),
                 episodes: eps,
                 traces,
             });
         }
     }
-    Ok(SuiteResult { suite: suite.name.clone(), robot: setups[0].robot.name.clone(), seed, cells })
+    Ok(SuiteResult { suite: suite.name.clone(), robot: setups[0].0.robot.name.clone(), seed, cells })
 }
 
 /// Mean and (population) standard deviation.
@@ -174,9 +228,14 @@ impl SuiteResult {
     /// minimum lidar range, average linear velocity and final distance to the target (mean ±
     /// standard deviation; task time over successful episodes).
     pub fn markdown(&self) -> String {
+        let barn = self.cells.iter().any(|c| c.barn_score.is_some());
         let mut s = format!(
-            "# {} with {} (seed {})\n\n| scenario | controller | success | collision | timeout | task time (s) | min lidar range (m) | avg linear velocity (m/s) | distance to target (m) |\n|---|---|---|---|---|---|---|---|---|\n",
-            self.suite, self.robot, self.seed
+            "# {} with {} (seed {})\n\n| scenario | controller | success | collision | timeout | task time (s) | min lidar range (m) | avg linear velocity (m/s) | distance to target (m) |{}\n|---|---|---|---|---|---|---|---|---|{}\n",
+            self.suite,
+            self.robot,
+            self.seed,
+            if barn { " BARN score |" } else { "" },
+            if barn { "---|" } else { "" },
         );
         for c in &self.cells {
             let pick = |f: &dyn Fn(&EpisodeStats) -> f32, only_wins: bool| {
@@ -192,7 +251,7 @@ impl SuiteResult {
             };
             let r = &c.summary;
             s += &format!(
-                "| {} | {} | {:.0}% | {:.0}% | {:.0}% | {} | {} | {} | {} |\n",
+                "| {} | {} | {:.0}% | {:.0}% | {:.0}% | {} | {} | {} | {} |{}\n",
                 c.scenario,
                 c.controller,
                 100.0 * r.success_rate,
@@ -202,7 +261,22 @@ impl SuiteResult {
                 pick(&|e| e.min_range, false),
                 pick(&|e| e.mean_speed, false),
                 pick(&|e| e.final_distance, false),
+                c.barn_score.map_or(String::new(), |b| format!(" {b:.3} |")),
             );
+        }
+        if barn {
+            let scores: Vec<(&str, f32)> = {
+                let mut by: std::collections::BTreeMap<&str, (f32, usize)> = Default::default();
+                for c in self.cells.iter().filter(|c| c.barn_score.is_some()) {
+                    let e = by.entry(c.controller.as_str()).or_default();
+                    e.0 += c.barn_score.unwrap_or(0.0);
+                    e.1 += 1;
+                }
+                by.into_iter().map(|(k, (sum, n))| (k, sum / n as f32)).collect()
+            };
+            s += "\nBARN score over the worlds (the challenge's metric, 0 to 0.5): ";
+            s += &scores.iter().map(|(k, v)| format!("{k} {v:.3}")).collect::<Vec<_>>().join(", ");
+            s += "\n";
         }
         s
     }

@@ -75,3 +75,29 @@ fn distance_band_holds_finished_episodes_at_their_final_distance() {
     assert_eq!(rlnav_bench::plots::slug("rl:policies/jetbot-static-mlp.onnx"), "jetbot-static-mlp");
     assert_eq!(rlnav_bench::plots::slug("rl:a/x.onnx:contracts/x.yaml"), "x");
 }
+
+#[test]
+fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/fixtures/barn/barn_worlds.json");
+    let yaml = format!("name: barn-test\nbarn: {{file: {file}, every: 50}}\nepisodes: 1\n");
+    let suite: SuiteSpec = rlnav_sim::config::from_yaml_str("barn-test.yaml", &yaml).unwrap();
+    let setups = rlnav_bench::suite::suite_setups(&suite, None).unwrap();
+    assert_eq!(setups.len(), 5);
+    for s in &setups {
+        assert_eq!((s.robot.name.as_str(), s.task.goal_tolerance, s.task.max_steps), ("jackal", 1.0, 1000));
+    }
+    let r = run_suite(&suite, &["dwa".into()], None, 1, 0, 2).unwrap();
+    for c in &r.cells {
+        let score = c.barn_score.unwrap();
+        let e = &c.episodes[0];
+        if e.outcome == rlnav_sim::Outcome::Success {
+            assert!(score > 0.0 && score <= 0.5, "{score}");
+        } else {
+            assert_eq!(score, 0.0);
+        }
+    }
+    assert!(r.markdown().contains("BARN score over the worlds"));
+    // The 360° Jetbot policy cannot drive the 270° Jackal: refused up front.
+    let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
+    assert!(run_suite(&suite, &[format!("rl:{policy}")], None, 1, 0, 1).is_err());
+}
