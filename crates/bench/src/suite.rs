@@ -172,7 +172,8 @@ fn suite_setups_scored(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<Sco
 
 /// Runs every controller on every scenario of `suite` with the same `episodes` seeded
 /// episodes each; `robot` replaces the scenarios' robot. Controllers, scenarios and policy
-/// contracts are all checked before the first episode.
+/// contracts are all checked before the first episode. `progress(done, total)` is called as
+/// each (scenario, controller) pair finishes.
 pub fn run_suite(
     suite: &SuiteSpec,
     controllers: &[String],
@@ -180,6 +181,7 @@ pub fn run_suite(
     episodes: usize,
     seed: u64,
     threads: usize,
+    progress: &mut dyn FnMut(usize, usize),
 ) -> Result<SuiteResult, BenchError> {
     if controllers.is_empty() {
         return Err(BenchError::NoControllers);
@@ -193,6 +195,7 @@ pub fn run_suite(
         }
     }
     let mut cells = Vec::new();
+    let total = setups.len() * controllers.len();
     for (setup, optimal) in &setups {
         for c in controllers {
             let (summary, eps, traces) =
@@ -209,6 +212,7 @@ pub fn run_suite(
                 episodes: eps,
                 traces,
             });
+            progress(cells.len(), total);
         }
     }
     Ok(SuiteResult { suite: suite.name.clone(), robot: setups[0].0.robot.name.clone(), seed, cells })

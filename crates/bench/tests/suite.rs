@@ -13,7 +13,9 @@ fn suites_run_controllers_on_the_same_episodes() {
     }
     let suite = SuiteSpec::load("paper-static").unwrap();
     let controllers = vec!["greedy".to_string(), "dwa".to_string()];
-    let r = run_suite(&suite, &controllers, None, 3, 11, 2).unwrap();
+    let mut ticks = Vec::new();
+    let r = run_suite(&suite, &controllers, None, 3, 11, 2, &mut |done, total| ticks.push((done, total))).unwrap();
+    assert_eq!(ticks, (1..=8).map(|d| (d, 8)).collect::<Vec<_>>(), "progress after every scenario x controller");
     assert_eq!(r.cells.len(), 4 * 2);
     for pair in r.cells.chunks(2) {
         assert_eq!(pair[0].scenario, pair[1].scenario);
@@ -48,12 +50,13 @@ fn suites_run_controllers_on_the_same_episodes() {
 #[test]
 fn bad_benchmarks_fail_before_any_episode() {
     let suite = SuiteSpec::load("paper-static").unwrap();
-    let e = run_suite(&suite, &["psychic".into()], None, 1, 0, 1).unwrap_err();
+    let e = run_suite(&suite, &["psychic".into()], None, 1, 0, 1, &mut |_, _| {}).unwrap_err();
     assert!(matches!(e, BenchError::Controller { .. }) && e.to_string().contains("unknown controller"), "{e}");
     let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
-    let e = run_suite(&suite, &[format!("rl:{policy}")], Some("jackal"), 1, 0, 1).unwrap_err().to_string();
+    let e =
+        run_suite(&suite, &[format!("rl:{policy}")], Some("jackal"), 1, 0, 1, &mut |_, _| {}).unwrap_err().to_string();
     assert!(e.contains("jackal") && e.contains("unseen"), "{e}");
-    assert!(matches!(run_suite(&suite, &[], None, 1, 0, 1), Err(BenchError::NoControllers)));
+    assert!(matches!(run_suite(&suite, &[], None, 1, 0, 1, &mut |_, _| {}), Err(BenchError::NoControllers)));
     let empty = rlnav_sim::config::from_yaml_str::<SuiteSpec>("empty.yaml", "name: e\nscenarios: []\n").unwrap_err();
     assert!(empty.to_string().contains("empty.yaml") && empty.to_string().contains("at least one scenario"));
     assert!(SuiteSpec::load("nope").unwrap_err().to_string().contains("paper-static"));
@@ -86,7 +89,7 @@ fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
     for s in &setups {
         assert_eq!((s.robot.name.as_str(), s.task.goal_tolerance, s.task.max_steps), ("jackal", 1.0, 1000));
     }
-    let r = run_suite(&suite, &["dwa".into()], None, 1, 0, 2).unwrap();
+    let r = run_suite(&suite, &["dwa".into()], None, 1, 0, 2, &mut |_, _| {}).unwrap();
     for c in &r.cells {
         let score = c.barn_score.unwrap();
         let e = &c.episodes[0];
@@ -99,5 +102,5 @@ fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
     assert!(r.markdown().contains("BARN score over the worlds"));
     // The 360° Jetbot policy cannot drive the 270° Jackal: refused up front.
     let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
-    assert!(run_suite(&suite, &[format!("rl:{policy}")], None, 1, 0, 1).is_err());
+    assert!(run_suite(&suite, &[format!("rl:{policy}")], None, 1, 0, 1, &mut |_, _| {}).is_err());
 }

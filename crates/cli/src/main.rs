@@ -770,7 +770,19 @@ fn bench(
             spec.scenarios.len(),
             controllers.len()
         );
-        let r = run_suite(spec, &controllers, robot.as_deref(), n, seed, threads.max(1))?;
+        let bar = indicatif::ProgressBar::new(1);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} scenario x controller [{elapsed_precise}] {msg}",
+            )
+            .expect("a valid template"),
+        );
+        bar.set_message(spec.name.clone());
+        let r = run_suite(spec, &controllers, robot.as_deref(), n, seed, threads.max(1), &mut |done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        })?;
+        bar.finish_and_clear();
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         let setups = rlnav_bench::suite::suite_setups(spec, robot.as_deref())?;
         let figures = rlnav_bench::plots::write_suite_figures(&r, &setups, out).map_err(|e| anyhow::anyhow!(e))?;
