@@ -1,8 +1,7 @@
 //! One episode under a controller, recorded frame by frame for pictures and animations.
 
 use rlnav_sim::movers::Mover;
-use rlnav_sim::task::SimError;
-use rlnav_sim::{Controller, EpisodeStats, NavEnv, Pose2, RobotObservation, Vec2};
+use rlnav_sim::{Controller, EpisodeStats, NavEnv, Pose2, Vec2};
 
 /// What the world looked like after one control step.
 #[derive(Clone, Debug)]
@@ -51,18 +50,9 @@ pub struct Recording {
 /// Runs the environment's current episode to its end under `controller`, recording every
 /// control step. The environment is left at the end state (not reset), so that the world the
 /// episode ran in can still be drawn.
-pub fn record_episode(env: &mut NavEnv, controller: &mut dyn Controller) -> Result<Recording, SimError> {
-    controller.reset();
+pub fn record_episode(env: &mut NavEnv, controller: &mut dyn Controller) -> Recording {
     let period = env.setup().task.control_period;
-    let mut frames = vec![Frame::capture(env, 0.0)];
-    let mut obs = RobotObservation::default();
-    loop {
-        env.robot_observation(&mut obs);
-        let out = env.step_twist(controller.act(&obs));
-        frames.push(Frame::capture(env, frames.len() as f32 * period));
-        if out.terminated || out.truncated {
-            let stats = env.last_episode().expect("set when an episode ends");
-            return Ok(Recording { frames, stats });
-        }
-    }
+    let mut frames = Vec::new();
+    let stats = env.run_to_end(controller, |e| frames.push(Frame::capture(e, frames.len() as f32 * period)));
+    Recording { frames, stats }
 }

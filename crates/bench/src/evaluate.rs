@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 use rlnav_sim::task::{EnvSetup, SimError};
 use rlnav_sim::vec_env::env_seed;
-use rlnav_sim::{Controller, EpisodeStats, NavEnv, Outcome, RobotObservation};
+use rlnav_sim::{Controller, EpisodeStats, NavEnv, Outcome};
 use serde::Serialize;
 use std::sync::Arc;
 
@@ -75,19 +75,10 @@ impl EpisodeTrace {
 
 /// Runs the environment's current episode to its end under `c`, tracing it.
 pub fn traced_episode(env: &mut NavEnv, c: &mut dyn Controller) -> (EpisodeStats, EpisodeTrace) {
-    c.reset();
     let period = env.setup().task.control_period;
     let mut trace = EpisodeTrace::default();
-    trace.push(env, 0.0);
-    let mut obs = RobotObservation::default();
-    loop {
-        env.robot_observation(&mut obs);
-        let out = env.step_twist(c.act(&obs));
-        trace.push(env, trace.time.len() as f32 * period);
-        if out.terminated || out.truncated {
-            return (env.last_episode().expect("set when an episode ends"), trace);
-        }
-    }
+    let stats = env.run_to_end(c, |e| trace.push(e, trace.time.len() as f32 * period));
+    (stats, trace)
 }
 
 /// Runs `episodes` episodes of `setup`, episode `k` seeded with `env_seed(seed, k)` (so the
@@ -117,4 +108,79 @@ pub fn evaluate_controller<E: std::fmt::Display + Send>(
     });
     let (stats, traces): (Vec<_>, Vec<_>) = runs?.into_iter().unzip();
     Ok((EvalSummary::of(&stats), stats, traces))
+}
+
+/// What `rlnav eval --policy` reports (and writes as `eval.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct PolicyEvaluation {
+    /// The model file.
+    pub policy: String,
+    /// Its contract.
+    pub contract: rlnav_policy::PolicyContract,
+    /// Scenario name.
+    pub scenario: String,
+    /// Robot name.
+    pub robot: String,
+    /// Seed of the episodes.
+    pub seed: u64,
+    /// Aggregate figures.
+    pub summary: EvalSummary,
+    /// Every episode.
+    pub episodes: Vec<EpisodeStats>,
+}
+
+/// Evaluates an ONNX policy (with its embedded or a side `contract`) on `scenario` with
+/// `robot` (default: the contract's robot when it is a preset, else the scenario's). The task
+/// is rlnav's default run at the policy's control period and with its action limits, so that
+/// the simulator clips nothing the policy may command. The model, the contract and the robot's
+/// lidar are checked before any episode.
+pub fn evaluate_policy(
+    policy: &std::path::Path,
+    contract: Option<&std::path::Path>,
+    scenario: &str,
+    robot: Option<&str>,
+    episodes: usize,
+    seed: u64,
+    threads: usize,
+) -> Result<PolicyEvaluation, crate::suite::BenchError> {
+    use crate::suite::BenchError;
+    use rlnav_policy::PolicyRunner;
+    use rlnav_sim::task::{ActionConfig, TaskConfig};
+    use rlnav_sim::{RobotSpec, ScenarioSpec};
+    let bad = |message: String| BenchError::Controller { name: policy.display().to_string(), message };
+    let runner = PolicyRunner::load(policy, contract).map_err(|e| bad(e.to_string()))?;
+    let c = runner.contract().clone();
+    let scenario = ScenarioSpec::load(scenario)?;
+    let robot_name = match robot {
+        Some(r) => r.to_string(),
+        None if rlnav_sim::robot::ROBOT_PRESETS.iter().any(|(n, _)| *n == c.robot) => c.robot.clone(),
+        None => scenario.robot.clone(),
+    };
+    let robot = RobotSpec::load(&robot_name)?;
+    runner
+        .check_lidar(&robot.lidar)
+        .map_err(|e| bad(format!("the policy's scan contract does not fit {}'s lidar: {e}", robot.name)))?;
+    let task = TaskConfig {
+        control_period: c.control_period,
+        action: ActionConfig { linear: c.action.linear, angular: c.action.angular },
+        ..Default::default()
+    };
+    let setup = Arc::new(EnvSetup::new(scenario, robot, task)?);
+    let (summary, episodes, _) = evaluate_controller(
+        setup.clone(),
+        || PolicyRunner::load(policy, contract).map(|r| Box::new(r) as Box<dyn Controller>),
+        episodes,
+        seed,
+        threads,
+    )
+    .map_err(BenchError::Run)?;
+    Ok(PolicyEvaluation {
+        policy: policy.display().to_string(),
+        contract: c,
+        scenario: setup.scenario.spec().name.clone(),
+        robot: setup.robot.name.clone(),
+        seed,
+        summary,
+        episodes,
+    })
 }

@@ -3,7 +3,7 @@
 //! smallest lidar range (the article's "safety spectrum"), as SVG.
 
 use crate::evaluate::EpisodeTrace;
-use crate::render::{Scene, Style, view_of};
+use crate::render::{Scene, Style};
 use crate::suite::SuiteResult;
 use plotters::prelude::*;
 use rlnav_sim::task::EnvSetup;
@@ -97,13 +97,7 @@ pub fn write_suite_figures(
         // A scenario whose world changes every episode is drawn without obstacles.
         let empty = std::sync::Arc::new(World::new(Vec::new()));
         let world = setup.scenario.fixed_world().unwrap_or(&empty);
-        let scene = Scene {
-            world,
-            view: view_of(world, setup.scenario.area(), 0.3),
-            footprint: &setup.robot.footprint,
-            lidar: &setup.robot.lidar,
-            goal_tolerance: setup.task.goal_tolerance,
-        };
+        let scene = Scene::of(setup, world);
         for c in &cells {
             let paths: Vec<Vec<(Vec2, f32)>> = c
                 .traces

@@ -78,7 +78,19 @@ const ROBOT: RGBColor = RGBColor(30, 90, 200);
 const GOAL: RGBColor = RGBColor(20, 150, 60);
 const RAY: RGBColor = RGBColor(220, 40, 40);
 
-impl Scene<'_> {
+impl<'a> Scene<'a> {
+    /// The scene of episodes of `setup` in `world` (an episode's, or the scenario's fixed one):
+    /// the scenario's area and the world, 0.3 m of margin.
+    pub fn of(setup: &'a rlnav_sim::task::EnvSetup, world: &'a World) -> Self {
+        Self {
+            world,
+            view: view_of(world, setup.scenario.area(), 0.3),
+            footprint: &setup.robot.footprint,
+            lidar: &setup.robot.lidar,
+            goal_tolerance: setup.task.goal_tolerance,
+        }
+    }
+
     fn pixels(&self, style: &Style) -> (u32, u32) {
         let s = self.view.size();
         let scale = style.size as f32 / s.x.max(s.y);

@@ -559,14 +559,14 @@ fn render(
     speedup: f32,
 ) -> Result<()> {
     use rlnav_bench::episode::{Frame, record_episode};
-    use rlnav_bench::render::{Scene, Style, view_of};
+    use rlnav_bench::render::{Scene, Style};
     let is_gif = out.extension().is_some_and(|e| e.eq_ignore_ascii_case("gif"));
     anyhow::ensure!(episode || !is_gif, "{}: an animation needs --episode", out.display());
     let setup = args.setup()?;
     let mut env = NavEnv::new(setup.clone(), seed)?;
     let (frames, summary) = if episode {
         let mut c = rlnav_bench::controllers::for_setup(controller, &setup)?;
-        let rec = record_episode(&mut env, c.as_mut())?;
+        let rec = record_episode(&mut env, c.as_mut());
         let s = rec.stats;
         let summary = format!(
             "{} on {}: {:?} after {:.1} s, min lidar {:.2} m, mean speed {:.2} m/s",
@@ -581,13 +581,7 @@ fn render(
     } else {
         (vec![Frame::capture(&env, 0.0)], format!("{} at the start of an episode", setup.scenario.spec().name))
     };
-    let scene = Scene {
-        world: env.world(),
-        view: view_of(env.world(), setup.scenario.area(), 0.3),
-        footprint: &setup.robot.footprint,
-        lidar: &setup.robot.lidar,
-        goal_tolerance: setup.task.goal_tolerance,
-    };
+    let scene = Scene::of(&setup, env.world());
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -607,18 +601,6 @@ fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> Result<(
     Ok(())
 }
 
-/// `eval.json` of `rlnav eval --policy`.
-#[derive(serde::Serialize)]
-struct PolicyEvaluation {
-    policy: String,
-    contract: rlnav_policy::PolicyContract,
-    scenario: String,
-    robot: String,
-    seed: u64,
-    summary: rlnav_bench::evaluate::EvalSummary,
-    episodes: Vec<rlnav_sim::EpisodeStats>,
-}
-
 #[allow(clippy::too_many_arguments)]
 fn eval_policy(
     policy: &std::path::Path,
@@ -630,45 +612,21 @@ fn eval_policy(
     out: Option<PathBuf>,
     threads: usize,
 ) -> Result<()> {
-    use rlnav_policy::PolicyRunner;
     anyhow::ensure!(episodes > 0, "--episodes must be at least 1");
-    // Load once up front: a bad file or contract fails before any episode.
-    let runner = PolicyRunner::load(policy, contract)?;
-    let c = runner.contract().clone();
-    let scenario = ScenarioSpec::load(scenario.as_deref().unwrap_or("static-room"))?;
-    let robot_name = robot.unwrap_or_else(|| {
-        if rlnav_sim::robot::ROBOT_PRESETS.iter().any(|(n, _)| *n == c.robot) {
-            c.robot.clone()
-        } else {
-            scenario.robot.clone()
-        }
-    });
-    let robot = RobotSpec::load(&robot_name)?;
-    runner.check_lidar(&robot.lidar).with_context(|| {
-        format!("{}: the policy's scan contract does not fit {}'s lidar", policy.display(), robot.name)
-    })?;
-    // rlnav's task, run at the policy's rate and with its action limits (the simulator must
-    // not clip commands the policy is allowed to give).
-    let task = TaskConfig {
-        control_period: c.control_period,
-        action: rlnav_sim::task::ActionConfig { linear: c.action.linear, angular: c.action.angular },
-        ..Default::default()
-    };
-    let setup = Arc::new(EnvSetup::new(scenario, robot, task)?);
-    let name = setup.scenario.spec().name.clone();
-    let (summary, stats, _) = rlnav_bench::evaluate::evaluate_controller(
-        setup.clone(),
-        || PolicyRunner::load(policy, contract).map(|r| Box::new(r) as Box<dyn rlnav_sim::Controller>),
+    let scenario = scenario.as_deref().unwrap_or("static-room");
+    let ev = rlnav_bench::evaluate::evaluate_policy(
+        policy,
+        contract,
+        scenario,
+        robot.as_deref(),
         episodes,
         seed,
         threads.max(1),
-    )
-    .map_err(|e| anyhow::anyhow!(e))?;
+    )?;
+    let r = &ev.summary;
     println!(
-        "{} ({}) on {name} with {} ({episodes} episodes, seed {seed})",
-        policy.display(),
-        c.task,
-        setup.robot.name
+        "{} ({}) on {} with {} ({episodes} episodes, seed {seed})",
+        ev.policy, ev.contract.task, ev.scenario, ev.robot
     );
     println!(
         "{:<10} {:>8} {:>9} {:>8} {:>10} {:>10} {:>10}",
@@ -677,22 +635,13 @@ fn eval_policy(
     println!(
         "{:<10} {:>7.1}% {:>8.1}% {:>7.1}% {:>9.1}s {:>9.2}m {:>7.2}m/s",
         "",
-        100.0 * summary.success_rate,
-        100.0 * summary.collision_rate,
-        100.0 * summary.timeout_rate,
-        summary.mean_task_time,
-        summary.mean_min_range,
-        summary.mean_speed
+        100.0 * r.success_rate,
+        100.0 * r.collision_rate,
+        100.0 * r.timeout_rate,
+        r.mean_task_time,
+        r.mean_min_range,
+        r.mean_speed
     );
-    let ev = PolicyEvaluation {
-        policy: policy.display().to_string(),
-        contract: c,
-        scenario: name,
-        robot: setup.robot.name.clone(),
-        seed,
-        summary,
-        episodes: stats,
-    };
     write_json(&out.unwrap_or_else(|| PathBuf::from(".")).join("eval.json"), &ev)
 }
 

@@ -812,15 +812,24 @@ impl NavEnv {
     /// Runs one episode from the current state under `controller`, then resets.
     /// Returns the episode's statistics.
     pub fn run_episode(&mut self, controller: &mut dyn Controller) -> Result<EpisodeStats, SimError> {
+        let stats = self.run_to_end(controller, |_| {});
+        self.reset()?;
+        Ok(stats)
+    }
+
+    /// Runs the current episode to its end under `controller` (reset first), calling
+    /// `on_step(self)` at the start and after every control step; the environment is left at
+    /// the end (not reset), so the episode's last state can still be read.
+    pub fn run_to_end(&mut self, controller: &mut dyn Controller, mut on_step: impl FnMut(&Self)) -> EpisodeStats {
         controller.reset();
+        on_step(self);
         let mut obs = RobotObservation::default();
         loop {
             self.robot_observation(&mut obs);
             let out = self.step_twist(controller.act(&obs));
+            on_step(self);
             if out.terminated || out.truncated {
-                let stats = self.last_episode.expect("set when an episode ends");
-                self.reset()?;
-                return Ok(stats);
+                return self.last_episode.expect("set when an episode ends");
             }
         }
     }

@@ -10,6 +10,7 @@ use crate::config::Validate;
 use crate::geometry::{Pose2, convex_ccw};
 use crate::lidar::LidarSpec;
 use crate::robot::{FootprintSpec, RobotSpec};
+use glam::{DAffine3, DQuat, DVec3, EulerRot};
 use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::path::Path;
@@ -75,53 +76,17 @@ impl UrdfImport {
     }
 }
 
-/// A rigid 3D transform (rotation matrix, translation), enough for URDF joint origins.
-#[derive(Clone, Copy, Debug)]
-struct Tf {
-    r: [[f64; 3]; 3],
-    t: [f64; 3],
+/// A URDF origin as a rigid transform: translation `xyz`, then fixed-axis roll, pitch, yaw
+/// (R = Rz(yaw) Ry(pitch) Rx(roll)).
+fn origin_tf(p: &urdf_rs::Pose) -> DAffine3 {
+    let [roll, pitch, yaw] = p.rpy.0;
+    DAffine3::from_rotation_translation(DQuat::from_euler(EulerRot::ZYX, yaw, pitch, roll), DVec3::from(p.xyz.0))
 }
 
-impl Tf {
-    const IDENTITY: Tf = Tf { r: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], t: [0.0; 3] };
-
-    /// URDF origin: translation `xyz`, fixed-axis roll, pitch, yaw (R = Rz·Ry·Rx).
-    fn from_origin(p: &urdf_rs::Pose) -> Tf {
-        let [roll, pitch, yaw] = p.rpy.0;
-        let (sr, cr) = roll.sin_cos();
-        let (sp, cp) = pitch.sin_cos();
-        let (sy, cy) = yaw.sin_cos();
-        let r = [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ];
-        Tf { r, t: p.xyz.0 }
-    }
-
-    fn then(&self, child: &Tf) -> Tf {
-        let mut r = [[0.0; 3]; 3];
-        for (i, row) in r.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = (0..3).map(|k| self.r[i][k] * child.r[k][j]).sum();
-            }
-        }
-        Tf { r, t: self.apply(child.t) }
-    }
-
-    fn rotate(&self, v: [f64; 3]) -> [f64; 3] {
-        [0, 1, 2].map(|i| (0..3).map(|k| self.r[i][k] * v[k]).sum())
-    }
-
-    fn apply(&self, v: [f64; 3]) -> [f64; 3] {
-        let r = self.rotate(v);
-        [r[0] + self.t[0], r[1] + self.t[1], r[2] + self.t[2]]
-    }
-
-    /// Planar yaw of the frame's x axis.
-    fn yaw(&self) -> f64 {
-        self.r[1][0].atan2(self.r[0][0])
-    }
+/// Planar yaw of a frame's x axis.
+fn yaw_of(t: &DAffine3) -> f64 {
+    let x = t.matrix3.x_axis;
+    x.y.atan2(x.x)
 }
 
 /// Link names that mark a lidar, most specific first.
@@ -155,8 +120,8 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
         .iter()
         .find(|l| !parent_of.contains_key(l.name.as_str()))
         .ok_or_else(|| unusable("no root link (every link is some joint's child)".into()))?;
-    let mut in_root: HashMap<&str, Tf> = HashMap::new();
-    in_root.insert(root.name.as_str(), Tf::IDENTITY);
+    let mut in_root: HashMap<&str, DAffine3> = HashMap::new();
+    in_root.insert(root.name.as_str(), DAffine3::IDENTITY);
     // Joints may come in any order; resolve until nothing changes.
     for _ in 0..model.joints.len() + 1 {
         let mut changed = false;
@@ -165,7 +130,7 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
                 continue;
             }
             if let Some(p) = in_root.get(j.parent.link.as_str()).copied() {
-                in_root.insert(j.child.link.as_str(), p.then(&Tf::from_origin(&j.origin)));
+                in_root.insert(j.child.link.as_str(), p * origin_tf(&j.origin));
                 changed = true;
             }
         }
@@ -175,8 +140,8 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
     }
     // base_link is the robot frame by ROS convention (REP-105); otherwise the root.
     let base_name = if in_root.contains_key("base_link") { "base_link" } else { root.name.as_str() };
-    let base_inv = invert(in_root[base_name]);
-    let pose_in_base = |link: &str| in_root.get(link).map(|t| base_inv.then(t));
+    let base_inv = in_root[base_name].inverse();
+    let pose_in_base = |link: &str| in_root.get(link).map(|t| base_inv * *t);
     found.push(format!("robot frame `{base_name}` (root link `{}`)", root.name));
 
     // Drive wheels: continuous joints (or revolute without limits) turning about the lateral
@@ -192,7 +157,7 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
         }
         continuous.push(j.name.clone());
         let Some(tf) = pose_in_base(&j.child.link) else { continue };
-        let axis = tf.rotate(normalize(j.axis.xyz.0));
+        let axis = tf.transform_vector3(DVec3::from(j.axis.xyz.0)).normalize_or(DVec3::X);
         let geometry = link(&j.child.link).and_then(|l| {
             l.collision
                 .iter()
@@ -201,7 +166,7 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
                 .find_map(|g| if let Geometry::Cylinder { radius, .. } = g { Some(*radius) } else { None })
         });
         match geometry {
-            Some(radius) if axis[1].abs() > 0.9 => wheels.push((j, tf.t, radius)),
+            Some(radius) if axis.y.abs() > 0.9 => wheels.push((j, tf.translation, radius)),
             _ => {}
         }
     }
@@ -266,7 +231,7 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
         for name in candidates {
             let (Some(l), Some(tf)) = (link(name), pose_in_base(name)) else { continue };
             for c in &l.collision {
-                let t = tf.then(&Tf::from_origin(&c.origin));
+                let t = tf * origin_tf(&c.origin);
                 let pts = shape_outline(&c.geometry, &t);
                 if !pts.is_empty() {
                     outline.extend(pts);
@@ -304,7 +269,7 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
     match lidar_link {
         Some(l) => {
             let t = pose_in_base(&l.name).expect("checked above");
-            lidar.mount = Pose2::new(t.t[0] as f32, t.t[1] as f32, t.yaw() as f32);
+            lidar.mount = Pose2::new(t.translation.x as f32, t.translation.y as f32, yaw_of(&t) as f32);
             found.push(format!(
                 "lidar link `{}` at [{:.3}, {:.3}, {:.3}] in `{base_name}`",
                 l.name, lidar.mount.x, lidar.mount.y, lidar.mount.yaw
@@ -356,31 +321,14 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
     Ok(UrdfImport { robot, found, defaults })
 }
 
-fn normalize(v: [f64; 3]) -> [f64; 3] {
-    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if n > 0.0 { v.map(|x| x / n) } else { [1.0, 0.0, 0.0] }
-}
-
-fn invert(t: Tf) -> Tf {
-    let mut r = [[0.0; 3]; 3];
-    for (i, row) in r.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = t.r[j][i];
-        }
-    }
-    let inv = Tf { r, t: [0.0; 3] };
-    let t2 = inv.rotate(t.t);
-    Tf { r, t: [-t2[0], -t2[1], -t2[2]] }
-}
-
 /// The outline of a collision shape seen from above (points in the base frame).
-fn shape_outline(g: &Geometry, t: &Tf) -> Vec<[f64; 2]> {
+fn shape_outline(g: &Geometry, t: &DAffine3) -> Vec<[f64; 2]> {
     let corners = |hx: f64, hy: f64, hz: f64| {
         let mut v = Vec::new();
         for sx in [-1.0, 1.0] {
             for sy in [-1.0, 1.0] {
                 for sz in [-1.0, 1.0] {
-                    let p = t.apply([sx * hx, sy * hy, sz * hz]);
+                    let p = t.transform_point3(DVec3::new(sx * hx, sy * hy, sz * hz));
                     v.push([p[0], p[1]]);
                 }
             }
@@ -395,7 +343,7 @@ fn shape_outline(g: &Geometry, t: &Tf) -> Vec<[f64; 2]> {
             for k in 0..32 {
                 let a = k as f64 * 2.0 * PI / 32.0;
                 for z in [-length / 2.0, length / 2.0] {
-                    let p = t.apply([radius * a.cos(), radius * a.sin(), z]);
+                    let p = t.transform_point3(DVec3::new(radius * a.cos(), radius * a.sin(), z));
                     v.push([p[0], p[1]]);
                 }
             }
@@ -403,7 +351,7 @@ fn shape_outline(g: &Geometry, t: &Tf) -> Vec<[f64; 2]> {
         }
         Geometry::Sphere { radius } => (0..32)
             .map(|k| k as f64 * 2.0 * PI / 32.0)
-            .map(|a| [t.t[0] + radius * a.cos(), t.t[1] + radius * a.sin()])
+            .map(|a| [t.translation.x + radius * a.cos(), t.translation.y + radius * a.sin()])
             .collect(),
         Geometry::Mesh { .. } => Vec::new(),
     }
@@ -425,38 +373,12 @@ fn footprint_from(points: &[[f64; 2]]) -> FootprintSpec {
     if hi > 0.0 && (hi - lo) / hi < 0.02 {
         return FootprintSpec::Circle { radius: hi as f32 };
     }
-    let hull = convex_hull(points);
     let pts: Vec<crate::geometry::Vec2> =
-        hull.iter().map(|p| crate::geometry::Vec2::new(p[0] as f32, p[1] as f32)).collect();
-    match convex_ccw(&pts) {
+        points.iter().map(|p| crate::geometry::Vec2::new(p[0] as f32, p[1] as f32)).collect();
+    match convex_ccw(&parry2d::transformation::convex_hull(&pts)) {
         Some(ccw) => FootprintSpec::Polygon(ccw.iter().map(|v| [v.x, v.y]).collect()),
         None => FootprintSpec::Circle { radius: hi as f32 },
     }
-}
-
-/// Andrew's monotone chain; counter-clockwise, no collinear points.
-fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
-    let mut p: Vec<[f64; 2]> = points.to_vec();
-    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    p.dedup_by(|a, b| (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9);
-    if p.len() < 3 {
-        return p;
-    }
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-    let mut hull: Vec<[f64; 2]> = Vec::new();
-    for pass in 0..2 {
-        let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> =
-            if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
-        for q in iter {
-            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], *q) <= 1e-12 {
-                hull.pop();
-            }
-            hull.push(*q);
-        }
-        hull.pop();
-    }
-    hull
 }
 
 /// A Gazebo ray sensor's scan geometry.
