@@ -228,6 +228,7 @@ impl Crowd {
             }))
             .collect();
         let obstacles: Vec<Cow<'_, OrcaObstacle>> = self.obstacles.iter().map(Cow::Borrowed).collect();
+        let mut neighbours: Vec<Cow<'_, Agent>> = agents.iter().map(Cow::Borrowed).collect();
         let mut velocities = Vec::with_capacity(self.people.len());
         for (i, p) in self.people.iter_mut().enumerate() {
             if (p.goal() - p.position).length() < GOAL_REACHED {
@@ -248,16 +249,25 @@ impl Crowd {
             let dir = to_goal.normalize_or_zero();
             let dir = Vec2::new(c * dir.x - s * dir.y, s * dir.x + c * dir.y);
             let preferred = dir * p.speed.min(to_goal.length() / dt);
-            let neighbours: Vec<Cow<'_, Agent>> =
-                agents.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, a)| Cow::Borrowed(a)).collect();
+            // Everyone but this person: swap them to the end and pass the rest (one list for
+            // all, rather than one per person).
+            let last = neighbours.len() - 1;
+            neighbours.swap(i, last);
             let options = AvoidanceOptions {
                 // dodgy_2d keeps this distance from obstacles (it does not add the radius).
                 obstacle_margin: p.radius + 0.05,
                 time_horizon: TIME_HORIZON,
                 obstacle_time_horizon: OBSTACLE_HORIZON,
             };
-            let v =
-                agents[i].compute_avoiding_velocity(&neighbours, &obstacles, to_orca(preferred), p.speed, dt, &options);
+            let v = agents[i].compute_avoiding_velocity(
+                &neighbours[..last],
+                &obstacles,
+                to_orca(preferred),
+                p.speed,
+                dt,
+                &options,
+            );
+            neighbours.swap(i, last);
             velocities.push(Vec2::new(v.x, v.y));
         }
         for (p, v) in self.people.iter_mut().zip(velocities) {
