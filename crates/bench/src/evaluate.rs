@@ -64,7 +64,7 @@ pub struct EpisodeTrace {
 }
 
 impl EpisodeTrace {
-    fn push(&mut self, env: &NavEnv, time: f32) {
+    pub(crate) fn push(&mut self, env: &NavEnv, time: f32) {
         let p = env.pose().position();
         self.time.push(time);
         self.position.push([p.x, p.y]);
@@ -83,14 +83,15 @@ pub fn traced_episode(env: &mut NavEnv, c: &mut dyn Controller) -> (EpisodeStats
 
 /// Runs `episodes` episodes of `setup`, episode `k` seeded with `env_seed(seed, k)` (so the
 /// same seed gives the same scenes to every controller, whatever the thread count), each
-/// worker with its own controller from `make`. Returns the summary, every episode's figures
-/// and its trace.
+/// worker with its own controller from `make`; with `record`, episode `k` is also written to
+/// `record/episode_KKK.mcap`. Returns the summary, every episode's figures and its trace.
 pub fn evaluate_controller<E: std::fmt::Display + Send>(
     setup: Arc<EnvSetup>,
     make: impl Fn() -> Result<Box<dyn Controller>, E> + Sync,
     episodes: usize,
     seed: u64,
     threads: usize,
+    record: Option<&std::path::Path>,
 ) -> Result<(EvalSummary, Vec<EpisodeStats>, Vec<EpisodeTrace>), String> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("thread pool: {e}"))?;
     let runs: Result<Vec<(EpisodeStats, EpisodeTrace)>, String> = pool.install(|| {
@@ -101,7 +102,13 @@ pub fn evaluate_controller<E: std::fmt::Display + Send>(
                 |c, k| {
                     let c = c.as_mut().map_err(|e| e.clone())?;
                     let mut env = NavEnv::new(setup.clone(), env_seed(seed, k)).map_err(|e: SimError| e.to_string())?;
-                    Ok(traced_episode(&mut env, c.as_mut()))
+                    match record {
+                        Some(dir) => {
+                            let file = dir.join(format!("episode_{k:03}.mcap"));
+                            crate::record::recorded_episode(&mut env, c.as_mut(), &file).map_err(|e| e.to_string())
+                        }
+                        None => Ok(traced_episode(&mut env, c.as_mut())),
+                    }
                 },
             )
             .collect()
@@ -172,6 +179,7 @@ pub fn evaluate_policy(
         episodes,
         seed,
         threads,
+        None,
     )
     .map_err(BenchError::Run)?;
     Ok(PolicyEvaluation {

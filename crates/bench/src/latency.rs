@@ -65,3 +65,17 @@ pub fn measure_latency(
         max_us: *times.last().unwrap_or(&0.0),
     })
 }
+
+/// The per-cycle compute table (Markdown) for `reports` measured on `scenario`.
+pub fn markdown(reports: &[LatencyReport], scenario: &str) -> String {
+    let mut s = format!(
+        "## Per-cycle compute ({scenario}, one thread)\n\n| controller | beams | p50 (µs) | p99 (µs) | mean (µs) | max (µs) |\n|---|---|---|---|---|---|\n"
+    );
+    for r in reports {
+        s += &format!(
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            r.controller, r.beams, r.p50_us, r.p99_us, r.mean_us, r.max_us
+        );
+    }
+    s
+}

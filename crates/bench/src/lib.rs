@@ -7,6 +7,7 @@
 //! - [`latency`]: per-cycle compute time of a controller, as percentiles;
 //! - [`suite`]: scenario suites, several controllers on the same seeded episodes, the table;
 //! - [`plots`]: distance to goal over time and trajectories coloured by lidar range (SVG);
+//! - [`record`]: episodes as MCAP recordings of ROS 2 messages;
 //! - [`render`]: pictures of a scene or an episode (PNG, SVG) and animations (GIF).
 
 pub mod controllers;
@@ -14,5 +15,6 @@ pub mod episode;
 pub mod evaluate;
 pub mod latency;
 pub mod plots;
+pub mod record;
 pub mod render;
 pub mod suite;

@@ -3,8 +3,9 @@
 //! smallest lidar range (the article's "safety spectrum"), as SVG.
 
 use crate::evaluate::EpisodeTrace;
-use crate::render::{Scene, Style};
+use crate::render::{Figure, Scene, Style, write_figure};
 use crate::suite::SuiteResult;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use rlnav_sim::task::EnvSetup;
 use rlnav_sim::{Vec2, World};
@@ -38,35 +39,47 @@ pub fn distance_band(traces: &[EpisodeTrace]) -> Band {
         .collect()
 }
 
-/// `distance_vs_time` for one scenario: one mean line and ±1 σ band per controller.
-pub fn distance_vs_time_svg(out: &Path, title: &str, series: &[(&str, &[EpisodeTrace])]) -> Result<(), String> {
-    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", out.display());
+/// `distance_vs_time` for one scenario (`.svg` or `.png`): one mean line and ±1 σ band per
+/// controller.
+pub fn distance_vs_time(out: &Path, title: &str, series: &[(&str, &[EpisodeTrace])]) -> Result<(), String> {
     let bands: Vec<(&str, Band)> = series.iter().map(|(n, t)| (*n, distance_band(t))).collect();
-    let t_max = bands.iter().filter_map(|(_, b)| b.last().map(|p| p.0)).fold(1.0f32, f32::max);
-    let d_max = bands.iter().flat_map(|(_, b)| b.iter().map(|p| p.1 + p.2)).fold(1.0f32, f32::max);
-    let root = SVGBackend::new(out, (800, 480)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 18))
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(50)
-        .build_cartesian_2d(0f32..t_max, 0f32..d_max * 1.05)
-        .map_err(|e| err(&e))?;
-    chart.configure_mesh().x_desc("time (s)").y_desc("distance to goal (m)").draw().map_err(|e| err(&e))?;
-    for (i, (name, band)) in bands.iter().enumerate() {
-        let c = COLOURS[i % COLOURS.len()];
-        let mut poly: Vec<(f32, f32)> = band.iter().map(|(t, m, s)| (*t, m + s)).collect();
-        poly.extend(band.iter().rev().map(|(t, m, s)| (*t, (m - s).max(0.0))));
-        chart.draw_series(std::iter::once(Polygon::new(poly, c.mix(0.2).filled()))).map_err(|e| err(&e))?;
-        chart
-            .draw_series(LineSeries::new(band.iter().map(|(t, m, _)| (*t, *m)), c.stroke_width(2)))
-            .map_err(|e| err(&e))?
-            .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+    write_figure(out, (800, 480), &DistanceFigure { title, bands }).map_err(|e| format!("{}: {e}", out.display()))
+}
+
+struct DistanceFigure<'a> {
+    title: &'a str,
+    bands: Vec<(&'a str, Band)>,
+}
+
+impl Figure for DistanceFigure<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        let bands = &self.bands;
+        let t_max = bands.iter().filter_map(|(_, b)| b.last().map(|p| p.0)).fold(1.0f32, f32::max);
+        let d_max = bands.iter().flat_map(|(_, b)| b.iter().map(|p| p.1 + p.2)).fold(1.0f32, f32::max);
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(root)
+            .caption(self.title, ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0f32..t_max, 0f32..d_max * 1.05)?;
+        chart.configure_mesh().x_desc("time (s)").y_desc("distance to goal (m)").draw()?;
+        for (i, (name, band)) in bands.iter().enumerate() {
+            let c = COLOURS[i % COLOURS.len()];
+            let mut poly: Vec<(f32, f32)> = band.iter().map(|(t, m, s)| (*t, m + s)).collect();
+            poly.extend(band.iter().rev().map(|(t, m, s)| (*t, (m - s).max(0.0))));
+            chart.draw_series(std::iter::once(Polygon::new(poly, c.mix(0.2).filled())))?;
+            chart
+                .draw_series(LineSeries::new(band.iter().map(|(t, m, _)| (*t, *m)), c.stroke_width(2)))?
+                .label(*name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        }
+        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+        Ok(())
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
-    root.present().map_err(|e| err(&e))
 }
 
 /// A file-name-safe form of a controller spec.
@@ -78,7 +91,7 @@ pub fn slug(s: &str) -> String {
 }
 
 /// Writes, for every scenario of `result`, `distance_vs_time_<scenario>.svg` and
-/// `trajectories_<scenario>_<controller>.svg` into `dir`; `setups` are the suite's scenarios in
+/// `trajectories_<scenario>_<controller>.svg`, each also as PNG, into `dir`; `setups` are the suite's scenarios in
 /// order. Returns the files written.
 pub fn write_suite_figures(
     result: &SuiteResult,
@@ -91,9 +104,11 @@ pub fn write_suite_figures(
         let cells: Vec<_> = result.cells.iter().filter(|c| &c.scenario == name).collect();
         let series: Vec<(&str, &[EpisodeTrace])> =
             cells.iter().map(|c| (c.controller.as_str(), c.traces.as_slice())).collect();
-        let f = dir.join(format!("distance_vs_time_{name}.svg"));
-        distance_vs_time_svg(&f, &format!("{name}: distance to goal (mean ± 1 sd)"), &series)?;
-        files.push(f);
+        for ext in ["svg", "png"] {
+            let f = dir.join(format!("distance_vs_time_{name}.{ext}"));
+            distance_vs_time(&f, &format!("{name}: distance to goal (mean ± 1 sd)"), &series)?;
+            files.push(f);
+        }
         // A scenario whose world changes every episode is drawn without obstacles.
         let empty = std::sync::Arc::new(World::new(Vec::new()));
         let world = setup.scenario.fixed_world().unwrap_or(&empty);
@@ -104,17 +119,12 @@ pub fn write_suite_figures(
                 .iter()
                 .map(|t| t.position.iter().zip(&t.min_range).map(|(p, r)| (Vec2::new(p[0], p[1]), *r)).collect())
                 .collect();
-            let f = dir.join(format!("trajectories_{name}_{}.svg", slug(&c.controller)));
-            scene
-                .write_paths_svg(
-                    &f,
-                    &paths,
-                    setup.task.collision_range,
-                    1.0,
-                    &Style { size: 700, ..Default::default() },
-                )
-                .map_err(|e| e.to_string())?;
-            files.push(f);
+            for ext in ["svg", "png"] {
+                let f = dir.join(format!("trajectories_{name}_{}.{ext}", slug(&c.controller)));
+                let style = Style { size: 700, ..Default::default() };
+                scene.write_paths(&f, &paths, setup.task.collision_range, 1.0, &style).map_err(|e| e.to_string())?;
+                files.push(f);
+            }
         }
     }
     Ok(files)

@@ -226,10 +226,11 @@ impl<'a> Scene<'a> {
         Ok(())
     }
 
-    /// Writes an SVG of the world with paths drawn over it, each point coloured by the
-    /// smallest lidar range at that moment (the article's "safety spectrum": red at `red` m or
-    /// closer, green at `green` m or farther), each path starting at a hollow circle.
-    pub fn write_paths_svg(
+    /// Writes the world with paths drawn over it (`.svg` or `.png`, by extension), each point
+    /// coloured by the smallest lidar range at that moment (the article's "safety spectrum":
+    /// red at `red` m or closer, green at `green` m or farther), each path starting at a hollow
+    /// circle.
+    pub fn write_paths(
         &self,
         path: &Path,
         paths: &[Vec<(Vec2, f32)>],
@@ -237,34 +238,46 @@ impl<'a> Scene<'a> {
         green: f32,
         style: &Style,
     ) -> Result<(), RenderError> {
-        let file = path.display().to_string();
-        let err = |e: String| RenderError::Write { file: file.clone(), message: e };
-        let root = SVGBackend::new(path, self.pixels(style)).into_drawing_area();
-        let draw = || -> Result<(), DrawingAreaErrorKind<std::io::Error>> {
-            root.fill(&WHITE)?;
-            let area = self.world_area(&root);
-            self.draw_world(&area, style)?;
-            for p in paths {
-                if let Some(first) = p.first() {
-                    area.draw(&Circle::new((first.0.x, first.0.y), 4, ROBOT.stroke_width(1)))?;
-                }
-                for w in p.windows(2) {
-                    let t = ((w[1].1 - red) / (green - red)).clamp(0.0, 1.0) as f64;
-                    // Red through yellow to green.
-                    let colour =
-                        RGBColor((255.0 * (2.0 - 2.0 * t).min(1.0)) as u8, (200.0 * (2.0 * t).min(1.0)) as u8, 40);
-                    area.draw(&PathElement::new(
-                        vec![(w[0].0.x, w[0].0.y), (w[1].0.x, w[1].0.y)],
-                        colour.stroke_width(2),
-                    ))?;
-                }
-            }
-            Ok(())
-        };
-        draw().map_err(|e| err(e.to_string()))?;
-        root.present().map_err(|e| err(e.to_string()))
+        let figure = PathsFigure { scene: self, paths, red, green, style };
+        write_figure(path, self.pixels(style), &figure)
+            .map_err(|message| RenderError::Write { file: path.display().to_string(), message })
     }
+}
 
+/// A scene with coloured paths over it.
+struct PathsFigure<'a> {
+    scene: &'a Scene<'a>,
+    paths: &'a [Vec<(Vec2, f32)>],
+    red: f32,
+    green: f32,
+    style: &'a Style,
+}
+
+impl Figure for PathsFigure<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        let Self { scene, paths, red, green, style } = *self;
+        root.fill(&WHITE)?;
+        let area = scene.world_area(root);
+        scene.draw_world(&area, style)?;
+        for p in paths {
+            if let Some(first) = p.first() {
+                area.draw(&Circle::new((first.0.x, first.0.y), 4, ROBOT.stroke_width(1)))?;
+            }
+            for w in p.windows(2) {
+                let t = ((w[1].1 - red) / (green - red)).clamp(0.0, 1.0) as f64;
+                // Red through yellow to green.
+                let colour = RGBColor((255.0 * (2.0 - 2.0 * t).min(1.0)) as u8, (200.0 * (2.0 * t).min(1.0)) as u8, 40);
+                area.draw(&PathElement::new(vec![(w[0].0.x, w[0].0.y), (w[1].0.x, w[1].0.y)], colour.stroke_width(2)))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Scene<'_> {
     fn draw_robot<DB: DrawingBackend>(
         &self,
         area: &DrawingArea<DB, Cartesian2d<RangedCoordf32, RangedCoordf32>>,
@@ -377,4 +390,49 @@ pub fn view_of(world: &World, area: Rect, margin: f32) -> Rect {
         grow(b.max, 0.0);
     }
     Rect { min: min - Vec2::splat(margin), max: max + Vec2::splat(margin) }
+}
+
+/// Registers the embedded font (DejaVu Sans) for plot text once per process, so that labels
+/// render the same on every machine, with or without system fonts.
+pub(crate) fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let font: &'static [u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
+        // The font is ours and known good; a failure would only drop the text.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, font);
+    });
+}
+
+/// Something drawn the same way on any plotters backend.
+pub trait Figure {
+    /// Draws onto `root`.
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>;
+}
+
+/// Draws `figure` at `size` pixels and writes it as SVG or PNG, by `path`'s extension.
+pub fn write_figure(path: &Path, size: (u32, u32), figure: &impl Figure) -> Result<(), String> {
+    register_font();
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("svg") => {
+            let root = SVGBackend::new(path, size).into_drawing_area();
+            figure.draw(&root).map_err(|e| e.to_string())?;
+            root.present().map_err(|e| e.to_string())
+        }
+        Some("png") => {
+            let (w, h) = size;
+            let mut buf = vec![0u8; (w * h * 3) as usize];
+            {
+                let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+                figure.draw(&root).map_err(|e| e.to_string())?;
+                root.present().map_err(|e| e.to_string())?;
+            }
+            let img = RgbImage::from_raw(w, h, buf).ok_or("buffer size")?;
+            img.save_with_format(path, image::ImageFormat::Png).map_err(|e| e.to_string())
+        }
+        _ => Err("unknown picture format (use .svg or .png)".into()),
+    }
 }

@@ -8,6 +8,7 @@ use rlnav_sim::config::{ConfigError, Invalid, Validate, preset_or_file};
 use rlnav_sim::task::{EnvSetup, SimError, TaskConfig};
 use rlnav_sim::{EpisodeStats, RobotSpec, ScenarioSpec};
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 use std::sync::Arc;
 
 /// The suites shipped in `suites/`: `(name, yaml)`.
@@ -170,19 +171,37 @@ fn suite_setups_scored(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<Sco
     Ok(setups)
 }
 
-/// Runs every controller on every scenario of `suite` with the same `episodes` seeded
-/// episodes each; `robot` replaces the scenarios' robot. Controllers, scenarios and policy
-/// contracts are all checked before the first episode. `progress(done, total)` is called as
-/// each (scenario, controller) pair finishes.
+/// How [`run_suite`] runs.
+#[derive(Clone, Copy, Debug)]
+pub struct RunOptions<'a> {
+    /// Replaces the scenarios' robot.
+    pub robot: Option<&'a str>,
+    /// Episodes per scenario and controller.
+    pub episodes: usize,
+    /// Seed of the episodes (the same scenes for every controller).
+    pub seed: u64,
+    /// Worker threads.
+    pub threads: usize,
+    /// Record every episode as MCAP under `DIR/SCENARIO/CONTROLLER/episode_NNN.mcap`.
+    pub record: Option<&'a Path>,
+}
+
+impl Default for RunOptions<'_> {
+    fn default() -> Self {
+        Self { robot: None, episodes: 20, seed: 0, threads: 1, record: None }
+    }
+}
+
+/// Runs every controller on every scenario of `suite` with the same seeded episodes each.
+/// Controllers, scenarios and policy contracts are all checked before the first episode.
+/// `progress(done, total)` is called as each (scenario, controller) pair finishes.
 pub fn run_suite(
     suite: &SuiteSpec,
     controllers: &[String],
-    robot: Option<&str>,
-    episodes: usize,
-    seed: u64,
-    threads: usize,
+    opts: &RunOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<SuiteResult, BenchError> {
+    let RunOptions { robot, episodes, seed, threads, record } = *opts;
     if controllers.is_empty() {
         return Err(BenchError::NoControllers);
     }
@@ -198,8 +217,10 @@ pub fn run_suite(
     let total = setups.len() * controllers.len();
     for (setup, optimal) in &setups {
         for c in controllers {
+            let name = &setup.scenario.spec().name;
+            let dir = record.map(|d| d.join(crate::plots::slug(name)).join(crate::plots::slug(c)));
             let (summary, eps, traces) =
-                evaluate_controller(setup.clone(), || for_setup(c, setup), episodes, seed, threads)
+                evaluate_controller(setup.clone(), || for_setup(c, setup), episodes, seed, threads, dir.as_deref())
                     .map_err(BenchError::Run)?;
             cells.push(CellResult {
                 scenario: setup.scenario.spec().name.clone(),

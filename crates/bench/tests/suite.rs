@@ -1,7 +1,7 @@
 //! Suites: every shipped suite loads, controllers run on the same seeded episodes, the table
 //! has a row per scenario and controller, and bad input fails before any episode.
 
-use rlnav_bench::suite::{BenchError, SUITE_PRESETS, SuiteSpec, run_suite};
+use rlnav_bench::suite::{BenchError, RunOptions, SUITE_PRESETS, SuiteSpec, run_suite};
 
 #[test]
 fn suites_run_controllers_on_the_same_episodes() {
@@ -14,7 +14,13 @@ fn suites_run_controllers_on_the_same_episodes() {
     let suite = SuiteSpec::load("paper-static").unwrap();
     let controllers = vec!["greedy".to_string(), "dwa".to_string()];
     let mut ticks = Vec::new();
-    let r = run_suite(&suite, &controllers, None, 3, 11, 2, &mut |done, total| ticks.push((done, total))).unwrap();
+    let r = run_suite(
+        &suite,
+        &controllers,
+        &RunOptions { robot: None, episodes: 3, seed: 11, threads: 2, record: None },
+        &mut |done, total| ticks.push((done, total)),
+    )
+    .unwrap();
     assert_eq!(ticks, (1..=8).map(|d| (d, 8)).collect::<Vec<_>>(), "progress after every scenario x controller");
     assert_eq!(r.cells.len(), 4 * 2);
     for pair in r.cells.chunks(2) {
@@ -37,10 +43,16 @@ fn suites_run_controllers_on_the_same_episodes() {
     std::fs::create_dir_all(&dir).unwrap();
     let setups = rlnav_bench::suite::suite_setups(&suite, None).unwrap();
     let files = rlnav_bench::plots::write_suite_figures(&r, &setups, &dir).unwrap();
-    assert_eq!(files.len(), 4 * (1 + 2));
+    assert_eq!(files.len(), 4 * (1 + 2) * 2, "every figure as SVG and PNG");
     for f in &files {
-        let svg = std::fs::read_to_string(f).unwrap();
-        assert!(svg.starts_with("<svg") && (svg.contains("<polyline") || svg.contains("<path")), "{}", f.display());
+        if f.extension().unwrap() == "svg" {
+            let svg = std::fs::read_to_string(f).unwrap();
+            assert!(svg.starts_with("<svg") && (svg.contains("<polyline") || svg.contains("<path")), "{}", f.display());
+        } else {
+            let png = image::open(f).unwrap().to_rgb8();
+            // Not blank: the white background has coloured lines (and text) on it.
+            assert!(png.pixels().filter(|p| p.0 != [255, 255, 255]).count() > 1000, "{}", f.display());
+        }
     }
     let md = r.markdown();
     assert_eq!(md.lines().filter(|l| l.starts_with("| paper-static-")).count(), 8, "{md}");
@@ -50,13 +62,33 @@ fn suites_run_controllers_on_the_same_episodes() {
 #[test]
 fn bad_benchmarks_fail_before_any_episode() {
     let suite = SuiteSpec::load("paper-static").unwrap();
-    let e = run_suite(&suite, &["psychic".into()], None, 1, 0, 1, &mut |_, _| {}).unwrap_err();
+    let e = run_suite(
+        &suite,
+        &["psychic".into()],
+        &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None },
+        &mut |_, _| {},
+    )
+    .unwrap_err();
     assert!(matches!(e, BenchError::Controller { .. }) && e.to_string().contains("unknown controller"), "{e}");
     let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
-    let e =
-        run_suite(&suite, &[format!("rl:{policy}")], Some("jackal"), 1, 0, 1, &mut |_, _| {}).unwrap_err().to_string();
+    let e = run_suite(
+        &suite,
+        &[format!("rl:{policy}")],
+        &RunOptions { robot: Some("jackal"), episodes: 1, seed: 0, threads: 1, record: None },
+        &mut |_, _| {},
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("jackal") && e.contains("unseen"), "{e}");
-    assert!(matches!(run_suite(&suite, &[], None, 1, 0, 1, &mut |_, _| {}), Err(BenchError::NoControllers)));
+    assert!(matches!(
+        run_suite(
+            &suite,
+            &[],
+            &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None },
+            &mut |_, _| {}
+        ),
+        Err(BenchError::NoControllers)
+    ));
     let empty = rlnav_sim::config::from_yaml_str::<SuiteSpec>("empty.yaml", "name: e\nscenarios: []\n").unwrap_err();
     assert!(empty.to_string().contains("empty.yaml") && empty.to_string().contains("at least one scenario"));
     assert!(SuiteSpec::load("nope").unwrap_err().to_string().contains("paper-static"));
@@ -89,7 +121,13 @@ fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
     for s in &setups {
         assert_eq!((s.robot.name.as_str(), s.task.goal_tolerance, s.task.max_steps), ("jackal", 1.0, 1000));
     }
-    let r = run_suite(&suite, &["dwa".into()], None, 1, 0, 2, &mut |_, _| {}).unwrap();
+    let r = run_suite(
+        &suite,
+        &["dwa".into()],
+        &RunOptions { robot: None, episodes: 1, seed: 0, threads: 2, record: None },
+        &mut |_, _| {},
+    )
+    .unwrap();
     for c in &r.cells {
         let score = c.barn_score.unwrap();
         let e = &c.episodes[0];
@@ -102,5 +140,13 @@ fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
     assert!(r.markdown().contains("BARN score over the worlds"));
     // The 360° Jetbot policy cannot drive the 270° Jackal: refused up front.
     let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
-    assert!(run_suite(&suite, &[format!("rl:{policy}")], None, 1, 0, 1, &mut |_, _| {}).is_err());
+    assert!(
+        run_suite(
+            &suite,
+            &[format!("rl:{policy}")],
+            &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None },
+            &mut |_, _| {}
+        )
+        .is_err()
+    );
 }

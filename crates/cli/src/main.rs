@@ -157,6 +157,13 @@ enum Command {
         /// Output folder.
         #[arg(long, default_value = "bench-out")]
         out: PathBuf,
+        /// Also record every episode as MCAP (ROS 2 CDR: /scan, /odom, /tf, /cmd_vel,
+        /// /goal_pose, /clock) under OUT/mcap/SUITE/SCENARIO/CONTROLLER/.
+        #[arg(long)]
+        record: bool,
+        /// Control cycles timed per controller for the per-cycle compute table (0: none).
+        #[arg(long, default_value_t = 3000)]
+        timing_cycles: usize,
     },
     /// Print an ONNX policy's contract and its graph's inputs and outputs.
     Inspect {
@@ -200,6 +207,80 @@ enum Command {
     Robot {
         #[command(subcommand)]
         command: RobotCommand,
+    },
+    /// ROS 2 (pure Rust, no ROS installation): the policy node and the simulator bridge.
+    Ros2 {
+        #[command(subcommand)]
+        command: Ros2Command,
+    },
+}
+
+#[derive(clap::Args)]
+struct DdsArgs {
+    /// DDS domain (default: ROS_DOMAIN_ID, else 0).
+    #[arg(long)]
+    domain: Option<u16>,
+    /// Talk over loopback only (also set by ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST).
+    #[arg(long)]
+    localhost: bool,
+}
+
+impl DdsArgs {
+    fn resolve(&self) -> Result<(u16, rlnav_ros2::bus::Reach)> {
+        use rlnav_ros2::bus::{Reach, domain_from_env};
+        let domain = match self.domain {
+            Some(d) => d,
+            None => domain_from_env()?,
+        };
+        let reach = if self.localhost { Reach::Localhost } else { Reach::from_env() };
+        Ok((domain, reach))
+    }
+}
+
+#[derive(Subcommand)]
+enum Ros2Command {
+    /// Drive a robot with a policy: /scan and /odom (or a pose topic) in, /cmd_vel out, the
+    /// goal from --goal, the parameters or /goal_pose; state on /rlnav/status.
+    Node {
+        /// The policy (ONNX with its contract, e.g. policies/jetbot-static-mlp.onnx).
+        #[arg(long)]
+        policy: PathBuf,
+        /// A side contract for a policy file without one.
+        #[arg(long)]
+        contract: Option<PathBuf>,
+        /// Parameter YAML (topics, frames, limits, timeouts; flat or ROS 2's
+        /// `node: {ros__parameters: ...}`).
+        #[arg(long)]
+        params: Option<PathBuf>,
+        /// Goal X Y in the pose frame (overrides the parameters' goal).
+        #[arg(long, num_args = 2, value_names = ["X", "Y"], allow_negative_numbers = true)]
+        goal: Option<Vec<f64>>,
+        #[command(flatten)]
+        dds: DdsArgs,
+    },
+    /// Run a scenario as a ROS 2 robot: /scan, /odom, /tf, /tf_static, /clock and /goal_pose
+    /// out, /cmd_vel in. Prints each episode's figures as a JSON line.
+    Sim {
+        /// Scenario: a shipped name or a YAML file.
+        #[arg(long, default_value = "static-room")]
+        scenario: String,
+        /// Robot (default: the scenario's).
+        #[arg(long)]
+        robot: Option<String>,
+        /// Seed of the episodes.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Episodes to run, then exit (0: until Ctrl-C).
+        #[arg(long, default_value_t = 0)]
+        episodes: usize,
+        /// Simulated seconds per second (1: real time).
+        #[arg(long, default_value_t = 1.0)]
+        rate: f64,
+        /// /cmd_vel carries geometry_msgs/TwistStamped.
+        #[arg(long)]
+        cmd_vel_stamped: bool,
+        #[command(flatten)]
+        dds: DdsArgs,
     },
 }
 
@@ -302,8 +383,9 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Inspect { policy, contract } => inspect(&policy, contract.as_deref()),
-        Command::Bench { suite, controller, robot, episodes, seed, threads, out } => {
-            bench(suite, controller, robot, episodes, seed, threads, &out)
+        Command::Bench { suite, controller, robot, episodes, seed, threads, out, record, timing_cycles } => {
+            let opts = BenchArgs { robot, episodes, seed, threads, record, timing_cycles };
+            bench(suite, controller, &opts, &out)
         }
         Command::Latency { env, controller, cycles } => {
             anyhow::ensure!(cycles > 0, "--cycles must be at least 1");
@@ -318,6 +400,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Robot { command: RobotCommand::Import { urdf, out, name } } => robot_import(&urdf, out, name),
+        Command::Ros2 { command } => ros2(command),
         Command::Render { env, out, episode, controller, seed, size, beam_stride, speedup } => {
             render(&env, &out, episode, &controller, seed, size, beam_stride, speedup)
         }
@@ -693,26 +776,28 @@ fn inspect(policy: &std::path::Path, contract: Option<&std::path::Path>) -> Resu
 /// The shipped policy `rlnav bench` runs by default.
 const SHIPPED_POLICY: &str = "policies/jetbot-static-mlp.onnx";
 
-fn bench(
-    suites: Vec<String>,
-    controllers: Vec<String>,
+/// `rlnav bench`'s options besides the suites and controllers.
+struct BenchArgs {
     robot: Option<String>,
     episodes: Option<usize>,
     seed: u64,
     threads: usize,
-    out: &std::path::Path,
-) -> Result<()> {
-    use rlnav_bench::suite::{SuiteSpec, run_suite};
+    record: bool,
+    timing_cycles: usize,
+}
+
+fn bench(suites: Vec<String>, controllers: Vec<String>, a: &BenchArgs, out: &std::path::Path) -> Result<()> {
+    use rlnav_bench::suite::{RunOptions, SuiteSpec, run_suite};
     let suites = if suites.is_empty() { vec!["paper-static".into(), "paper-dynamic".into()] } else { suites };
     let controllers =
         if controllers.is_empty() { vec![format!("rl:{SHIPPED_POLICY}"), "dwa".into()] } else { controllers };
-    anyhow::ensure!(episodes != Some(0), "--episodes must be at least 1");
+    anyhow::ensure!(a.episodes != Some(0), "--episodes must be at least 1");
     // Load every suite first: a bad name fails before any episode runs.
     let specs = suites.iter().map(|s| SuiteSpec::load(s)).collect::<Result<Vec<_>, _>>()?;
     let mut md = String::new();
     let mut all = Vec::new();
     for spec in &specs {
-        let n = episodes.unwrap_or(spec.episodes);
+        let n = a.episodes.unwrap_or(spec.episodes);
         eprintln!(
             "{}: {} scenarios x {} controllers x {n} episodes...",
             spec.name,
@@ -727,22 +812,105 @@ fn bench(
             .expect("a valid template"),
         );
         bar.set_message(spec.name.clone());
-        let r = run_suite(spec, &controllers, robot.as_deref(), n, seed, threads.max(1), &mut |done, total| {
+        let record = a.record.then(|| out.join("mcap").join(rlnav_bench::plots::slug(&spec.name)));
+        let opts = RunOptions {
+            robot: a.robot.as_deref(),
+            episodes: n,
+            seed: a.seed,
+            threads: a.threads.max(1),
+            record: record.as_deref(),
+        };
+        let r = run_suite(spec, &controllers, &opts, &mut |done, total| {
             bar.set_length(total as u64);
             bar.set_position(done as u64);
         })?;
         bar.finish_and_clear();
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-        let setups = rlnav_bench::suite::suite_setups(spec, robot.as_deref())?;
+        let setups = rlnav_bench::suite::suite_setups(spec, a.robot.as_deref())?;
         let figures = rlnav_bench::plots::write_suite_figures(&r, &setups, out).map_err(|e| anyhow::anyhow!(e))?;
         eprintln!("{}: {} figures in {}", spec.name, figures.len(), out.display());
+        if let Some(dir) = &record {
+            eprintln!("{}: MCAP recordings in {}", spec.name, dir.display());
+        }
         let table = r.markdown();
         println!("{table}");
         md += &table;
         md += "\n";
         all.push(r);
     }
+    // Per-cycle compute, one controller at a time on one thread, on the first suite's first
+    // scenario: what each costs per control step on this machine.
+    let mut timing = Vec::new();
+    if a.timing_cycles > 0 {
+        let setup = rlnav_bench::suite::suite_setups(&specs[0], a.robot.as_deref())?.remove(0);
+        for c in &controllers {
+            let mut ctl = rlnav_bench::controllers::for_setup(c, &setup)?;
+            let mut r =
+                rlnav_bench::latency::measure_latency(ctl.as_mut(), setup.clone(), a.timing_cycles, 200, a.seed)?;
+            r.controller = c.clone();
+            timing.push(r);
+        }
+        let t = rlnav_bench::latency::markdown(&timing, &setup.scenario.spec().name);
+        println!("{t}");
+        md += &t;
+    }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     std::fs::write(out.join("report.md"), md).with_context(|| format!("writing {}/report.md", out.display()))?;
-    write_json(&out.join("report.json"), &all)
+    write_json(&out.join("report.json"), &serde_json::json!({ "suites": all, "per_cycle_compute": timing }))
+}
+
+/// A flag set by Ctrl-C (and SIGTERM), for loops that must end by leaving the robot stopped.
+fn stop_flag() -> Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the Ctrl-C handler")?;
+    Ok(stop)
+}
+
+fn ros2(command: Ros2Command) -> Result<()> {
+    use rlnav_ros2::bridge::{BridgeOptions, SimBridge, bridge_setup, run_bridge};
+    use rlnav_ros2::node::{NodeParams, PolicyNode, run_node};
+    match command {
+        Ros2Command::Node { policy, contract, params, goal, dds } => {
+            let (domain, reach) = dds.resolve()?;
+            let mut p = match &params {
+                Some(f) => NodeParams::from_file(f)?,
+                None => NodeParams::default(),
+            };
+            if let Some(g) = goal {
+                p.goal = Some([g[0], g[1]]);
+            }
+            let runner = rlnav_policy::PolicyRunner::load(&policy, contract.as_deref())?;
+            let c = runner.contract();
+            eprintln!(
+                "rlnav_policy: {} ({} beams over [{:.2}, {:.2}] rad, every {:.3} s) on domain {domain}; {} -> {}",
+                policy.display(),
+                c.scan.beams,
+                c.scan.angle_min,
+                c.scan.angle_max,
+                c.control_period,
+                p.scan_topic,
+                p.cmd_vel_topic
+            );
+            let node = PolicyNode::new(runner, p);
+            run_node(node, domain, reach, stop_flag()?, |_, _| {})?;
+            Ok(())
+        }
+        Ros2Command::Sim { scenario, robot, seed, episodes, rate, cmd_vel_stamped, dds } => {
+            let (domain, reach) = dds.resolve()?;
+            anyhow::ensure!(rate.is_finite() && rate > 0.0, "--rate must be positive");
+            let setup = bridge_setup(&scenario, robot.as_deref())?;
+            let opts = BridgeOptions { seed, episodes, rate, cmd_vel_stamped, ..Default::default() };
+            eprintln!(
+                "rlnav_sim: {} with {} on domain {domain}, {rate}x real time",
+                setup.scenario.spec().name,
+                setup.robot.name
+            );
+            let bridge = SimBridge::new(setup, &opts)?;
+            run_bridge(bridge, &opts, domain, reach, stop_flag()?, |stats| {
+                println!("{}", serde_json::to_string(stats).unwrap_or_default());
+            })?;
+            Ok(())
+        }
+    }
 }

@@ -195,6 +195,9 @@ fn bench_writes_the_report() {
         "dwa",
         "--episodes",
         "1",
+        "--timing-cycles",
+        "100",
+        "--record",
         "--out",
         dir.to_str().unwrap(),
     ]);
@@ -203,7 +206,42 @@ fn bench_writes_the_report() {
     assert_eq!(md.lines().filter(|l| l.starts_with("| paper-dynamic-")).count(), 8, "{md}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
-    assert_eq!(json[0]["cells"].as_array().unwrap().len(), 8);
+    assert_eq!(json["suites"][0]["cells"].as_array().unwrap().len(), 8);
+    let timing = json["per_cycle_compute"].as_array().unwrap();
+    assert_eq!(timing.len(), 2);
+    assert!(timing.iter().all(|t| t["p50_us"].as_f64().unwrap() > 0.0));
+    assert!(md.contains("Per-cycle compute"), "{md}");
+    let mcap = dir.join("mcap/paper-dynamic/paper-dynamic-box01/dwa/episode_000.mcap");
+    assert!(std::fs::read(&mcap).unwrap().starts_with(b"\x89MCAP0\r\n"), "{}", mcap.display());
+    // An independent reader (PyPI mcap + mcap-ros2-support) decodes every message from the
+    // schemas in the file.
+    if let Ok(python) = std::env::var("RLNAV_ROS_PYTHON") {
+        let tool = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tools/mcap_check.py");
+        let out = std::process::Command::new(python).arg(tool).arg(&mcap).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let f = &v[mcap.to_str().unwrap()];
+        assert_eq!(f["profile"], "ros2");
+        let t = &f["topics"];
+        let n = t["/scan"]["count"].as_u64().unwrap();
+        assert!(n > 1);
+        for (topic, schema) in [
+            ("/scan", "sensor_msgs/msg/LaserScan"),
+            ("/odom", "nav_msgs/msg/Odometry"),
+            ("/tf", "tf2_msgs/msg/TFMessage"),
+            ("/cmd_vel", "geometry_msgs/msg/Twist"),
+            ("/goal_pose", "geometry_msgs/msg/PoseStamped"),
+            ("/clock", "rosgraph_msgs/msg/Clock"),
+        ] {
+            assert_eq!(t[topic]["schema"], schema, "{topic}");
+            assert_eq!(t[topic]["count"].as_u64(), Some(n), "{topic}");
+        }
+        assert_eq!(t["/scan"]["beams"], 360);
+        assert_eq!(t["/odom"]["covariance_len"], 36);
+        assert_eq!(t["/tf"]["frames"], serde_json::json!([["odom", "base_link"], ["base_link", "laser"]]));
+    } else {
+        eprintln!("RLNAV_ROS_PYTHON not set: the MCAP file is not checked with an independent reader");
+    }
     let out = rlnav(&["bench", "--suite", "no-such-suite", "--controller", "greedy"]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("unknown suite `no-such-suite`"));
 }

@@ -56,6 +56,12 @@ impl Pose2 {
         Vec2::new(self.x, self.y)
     }
 
+    /// The inverse transform: the parent frame's pose in this pose's frame.
+    pub fn inverse(&self) -> Pose2 {
+        let (s, c) = self.yaw.sin_cos();
+        Pose2::new(-(c * self.x + s * self.y), s * self.x - c * self.y, wrap_angle(-self.yaw))
+    }
+
     /// `self ∘ local`: a pose given in this pose's frame, expressed in the parent frame.
     #[inline]
     pub fn compose(&self, local: &Pose2) -> Pose2 {
@@ -359,6 +365,17 @@ mod tests {
             assert!(((w - a) / TAU - ((w - a) / TAU).round()).abs() < 1e-4);
         }
         assert_eq!(wrap_angle(-PI), PI);
+    }
+
+    #[test]
+    fn inverse_undoes_compose() {
+        let a = Pose2::new(1.5, -2.0, 2.5);
+        let b = Pose2::new(-0.3, 0.7, -1.0);
+        let back = a.inverse().compose(&a.compose(&b));
+        assert!((back.x - b.x).abs() < 1e-5 && (back.y - b.y).abs() < 1e-5 && (back.yaw - b.yaw).abs() < 1e-5);
+        let p = Vec2::new(0.4, 3.0);
+        let q = a.inverse().to_parent(a.to_parent(p));
+        assert!((q - p).length() < 1e-5);
     }
 
     #[test]

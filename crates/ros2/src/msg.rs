@@ -1,0 +1,594 @@
+//! ROS 2 message types, field for field as their `.msg` files define them.
+//!
+//! CDR (the wire format of ROS 2 over DDS, and of rosbag2's MCAP files) has no field names
+//! or tags: a struct is its fields in order, each aligned to its own size. So every struct
+//! here keeps the `.msg` field order and widths exactly, and the tests compare the bytes with
+//! ones a real ROS 2 implementation produced. [`RosMessage`] carries each type's ROS name and
+//! `.msg` text, which MCAP needs as the channel's schema.
+
+use serde::de::{self, DeserializeOwned, SeqAccess, Visitor};
+use serde::ser::SerializeTuple;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+/// A ROS 2 message type: its package, name and definition.
+pub trait RosMessage: Serialize + DeserializeOwned + Clone + Send + 'static {
+    /// Package, e.g. `sensor_msgs`.
+    const PACKAGE: &'static str;
+    /// Type name, e.g. `LaserScan`.
+    const NAME: &'static str;
+    /// The `.msg` text (without comments).
+    const DEFINITION: &'static str;
+    /// The message types this one uses, directly or not (`pkg/msg/Name`), each once.
+    const DEPENDS: &'static [&'static str];
+
+    /// The ROS 2 name, `pkg/msg/Name` (rosbag2's and MCAP's schema name).
+    fn type_name() -> String {
+        format!("{}/msg/{}", Self::PACKAGE, Self::NAME)
+    }
+
+    /// The `ros2msg` schema: this definition, then each dependency's under a `MSG:` line, as
+    /// rosbag2 writes it.
+    fn schema_text() -> String {
+        let mut s = Self::DEFINITION.to_string();
+        for dep in Self::DEPENDS {
+            let def = definition_of(dep).expect("every dependency is defined here");
+            s.push_str("\n================================================================================\n");
+            s.push_str(&format!("MSG: {}\n", dep.replace("/msg/", "/")));
+            s.push_str(def);
+        }
+        s
+    }
+}
+
+fn definition_of(full_name: &str) -> Option<&'static str> {
+    Some(match full_name {
+        "builtin_interfaces/msg/Time" => Time::DEFINITION,
+        "std_msgs/msg/Header" => Header::DEFINITION,
+        "geometry_msgs/msg/Vector3" => Vector3::DEFINITION,
+        "geometry_msgs/msg/Point" => Point::DEFINITION,
+        "geometry_msgs/msg/Quaternion" => Quaternion::DEFINITION,
+        "geometry_msgs/msg/Pose" => Pose::DEFINITION,
+        "geometry_msgs/msg/PoseWithCovariance" => PoseWithCovariance::DEFINITION,
+        "geometry_msgs/msg/Twist" => Twist::DEFINITION,
+        "geometry_msgs/msg/TwistWithCovariance" => TwistWithCovariance::DEFINITION,
+        "geometry_msgs/msg/Transform" => Transform::DEFINITION,
+        "geometry_msgs/msg/TransformStamped" => TransformStamped::DEFINITION,
+        _ => return None,
+    })
+}
+
+macro_rules! ros_message {
+    ($ty:ty, $pkg:literal, $name:literal, [$($dep:literal),*], $def:literal) => {
+        impl RosMessage for $ty {
+            const PACKAGE: &'static str = $pkg;
+            const NAME: &'static str = $name;
+            const DEFINITION: &'static str = $def;
+            const DEPENDS: &'static [&'static str] = &[$($dep),*];
+        }
+    };
+}
+
+/// `builtin_interfaces/Time`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Time {
+    /// Seconds.
+    pub sec: i32,
+    /// Nanoseconds within the second, `0..1e9`.
+    pub nanosec: u32,
+}
+
+impl Time {
+    /// The time `t` seconds after the epoch (rounded to the nanosecond).
+    pub fn from_secs(t: f64) -> Self {
+        let sec = t.floor();
+        let nanosec = ((t - sec) * 1e9).round().min(999_999_999.0) as u32;
+        Self { sec: sec as i32, nanosec }
+    }
+
+    /// Seconds since the epoch.
+    pub fn as_secs(&self) -> f64 {
+        self.sec as f64 + self.nanosec as f64 * 1e-9
+    }
+
+    /// Nanoseconds since the epoch (MCAP's log time).
+    pub fn as_nanos(&self) -> u64 {
+        (self.sec.max(0) as u64) * 1_000_000_000 + self.nanosec as u64
+    }
+}
+ros_message!(Time, "builtin_interfaces", "Time", [], "int32 sec\nuint32 nanosec\n");
+
+/// `std_msgs/Header`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// Acquisition time.
+    pub stamp: Time,
+    /// Frame the data is expressed in.
+    pub frame_id: String,
+}
+ros_message!(
+    Header,
+    "std_msgs",
+    "Header",
+    ["builtin_interfaces/msg/Time"],
+    "builtin_interfaces/Time stamp\nstring frame_id\n"
+);
+
+impl Header {
+    /// A header for `frame_id` at `stamp`.
+    pub fn new(stamp: Time, frame_id: &str) -> Self {
+        Self { stamp, frame_id: frame_id.to_string() }
+    }
+}
+
+/// `std_msgs/String`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StringMsg {
+    /// The text.
+    pub data: String,
+}
+ros_message!(StringMsg, "std_msgs", "String", [], "string data\n");
+
+/// `geometry_msgs/Vector3`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Vector3 {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+ros_message!(Vector3, "geometry_msgs", "Vector3", [], "float64 x\nfloat64 y\nfloat64 z\n");
+
+/// `geometry_msgs/Point`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Point {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+ros_message!(Point, "geometry_msgs", "Point", [], "float64 x\nfloat64 y\nfloat64 z\n");
+
+/// `geometry_msgs/Quaternion` (identity by default, as in ROS).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Quaternion {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+    /// w.
+    pub w: f64,
+}
+ros_message!(Quaternion, "geometry_msgs", "Quaternion", [], "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n");
+
+impl Default for Quaternion {
+    fn default() -> Self {
+        Self { x: 0.0, y: 0.0, z: 0.0, w: 1.0 }
+    }
+}
+
+impl Quaternion {
+    /// A rotation by `yaw` about z.
+    pub fn from_yaw(yaw: f64) -> Self {
+        let h = 0.5 * yaw;
+        Self { x: 0.0, y: 0.0, z: h.sin(), w: h.cos() }
+    }
+
+    /// The rotation's yaw (about z), for any unit quaternion; NaN if it has NaN parts.
+    pub fn yaw(&self) -> f64 {
+        let Self { x, y, z, w } = *self;
+        (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
+    }
+
+    /// Whether the parts are finite and the norm is 1 within `tol`.
+    pub fn is_unit(&self, tol: f64) -> bool {
+        let n = self.x * self.x + self.y * self.y + self.z * self.z + self.w * self.w;
+        n.is_finite() && (n.sqrt() - 1.0).abs() <= tol
+    }
+}
+
+/// `geometry_msgs/Pose`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// Position.
+    pub position: Point,
+    /// Orientation.
+    pub orientation: Quaternion,
+}
+ros_message!(
+    Pose,
+    "geometry_msgs",
+    "Pose",
+    ["geometry_msgs/msg/Point", "geometry_msgs/msg/Quaternion"],
+    "Point position\nQuaternion orientation\n"
+);
+
+impl Pose {
+    /// A planar pose.
+    pub fn planar(x: f64, y: f64, yaw: f64) -> Self {
+        Self { position: Point { x, y, z: 0.0 }, orientation: Quaternion::from_yaw(yaw) }
+    }
+}
+
+/// A row-major 6x6 covariance, `float64[36]` (fixed size: no length on the wire).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Covariance(pub [f64; 36]);
+
+impl Default for Covariance {
+    fn default() -> Self {
+        Self([0.0; 36])
+    }
+}
+
+impl Serialize for Covariance {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut t = s.serialize_tuple(36)?;
+        for v in &self.0 {
+            t.serialize_element(v)?;
+        }
+        t.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for Covariance {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Covariance;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("36 float64 values")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Covariance, A::Error> {
+                let mut c = [0.0; 36];
+                for (i, v) in c.iter_mut().enumerate() {
+                    *v = seq.next_element()?.ok_or_else(|| de::Error::invalid_length(i, &self))?;
+                }
+                Ok(Covariance(c))
+            }
+        }
+        d.deserialize_tuple(36, V)
+    }
+}
+
+/// `geometry_msgs/PoseWithCovariance`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseWithCovariance {
+    /// Pose.
+    pub pose: Pose,
+    /// Covariance of (x, y, z, roll, pitch, yaw).
+    pub covariance: Covariance,
+}
+ros_message!(
+    PoseWithCovariance,
+    "geometry_msgs",
+    "PoseWithCovariance",
+    ["geometry_msgs/msg/Pose", "geometry_msgs/msg/Point", "geometry_msgs/msg/Quaternion"],
+    "Pose pose\nfloat64[36] covariance\n"
+);
+
+/// `geometry_msgs/Twist`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Twist {
+    /// Linear velocity (m/s).
+    pub linear: Vector3,
+    /// Angular velocity (rad/s).
+    pub angular: Vector3,
+}
+ros_message!(Twist, "geometry_msgs", "Twist", ["geometry_msgs/msg/Vector3"], "Vector3 linear\nVector3 angular\n");
+
+impl Twist {
+    /// A planar twist: forward speed and yaw rate.
+    pub fn planar(linear: f64, angular: f64) -> Self {
+        Self {
+            linear: Vector3 { x: linear, ..Default::default() },
+            angular: Vector3 { z: angular, ..Default::default() },
+        }
+    }
+}
+
+/// `geometry_msgs/TwistWithCovariance`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TwistWithCovariance {
+    /// Twist.
+    pub twist: Twist,
+    /// Covariance.
+    pub covariance: Covariance,
+}
+ros_message!(
+    TwistWithCovariance,
+    "geometry_msgs",
+    "TwistWithCovariance",
+    ["geometry_msgs/msg/Twist", "geometry_msgs/msg/Vector3"],
+    "Twist twist\nfloat64[36] covariance\n"
+);
+
+/// `geometry_msgs/TwistStamped`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TwistStamped {
+    /// Header.
+    pub header: Header,
+    /// Twist.
+    pub twist: Twist,
+}
+ros_message!(
+    TwistStamped,
+    "geometry_msgs",
+    "TwistStamped",
+    ["std_msgs/msg/Header", "builtin_interfaces/msg/Time", "geometry_msgs/msg/Twist", "geometry_msgs/msg/Vector3"],
+    "std_msgs/Header header\nTwist twist\n"
+);
+
+/// `geometry_msgs/PoseStamped`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseStamped {
+    /// Header.
+    pub header: Header,
+    /// Pose.
+    pub pose: Pose,
+}
+ros_message!(
+    PoseStamped,
+    "geometry_msgs",
+    "PoseStamped",
+    [
+        "std_msgs/msg/Header",
+        "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/Pose",
+        "geometry_msgs/msg/Point",
+        "geometry_msgs/msg/Quaternion"
+    ],
+    "std_msgs/Header header\nPose pose\n"
+);
+
+/// `geometry_msgs/Transform`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Transform {
+    /// Translation.
+    pub translation: Vector3,
+    /// Rotation.
+    pub rotation: Quaternion,
+}
+ros_message!(
+    Transform,
+    "geometry_msgs",
+    "Transform",
+    ["geometry_msgs/msg/Vector3", "geometry_msgs/msg/Quaternion"],
+    "Vector3 translation\nQuaternion rotation\n"
+);
+
+/// `geometry_msgs/TransformStamped`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TransformStamped {
+    /// Header (the parent frame).
+    pub header: Header,
+    /// The child frame.
+    pub child_frame_id: String,
+    /// The child frame's pose in the parent.
+    pub transform: Transform,
+}
+ros_message!(
+    TransformStamped,
+    "geometry_msgs",
+    "TransformStamped",
+    [
+        "std_msgs/msg/Header",
+        "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/Transform",
+        "geometry_msgs/msg/Vector3",
+        "geometry_msgs/msg/Quaternion"
+    ],
+    "std_msgs/Header header\nstring child_frame_id\nTransform transform\n"
+);
+
+impl TransformStamped {
+    /// A planar transform from `parent` to `child` at `stamp`.
+    pub fn planar(stamp: Time, parent: &str, child: &str, x: f64, y: f64, yaw: f64) -> Self {
+        Self {
+            header: Header::new(stamp, parent),
+            child_frame_id: child.to_string(),
+            transform: Transform { translation: Vector3 { x, y, z: 0.0 }, rotation: Quaternion::from_yaw(yaw) },
+        }
+    }
+}
+
+/// `sensor_msgs/LaserScan`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LaserScan {
+    /// Header (the sensor frame, time of the first beam).
+    pub header: Header,
+    /// Angle of the first beam (rad).
+    pub angle_min: f32,
+    /// Angle of the last beam (rad).
+    pub angle_max: f32,
+    /// Angle between beams (rad).
+    pub angle_increment: f32,
+    /// Time between beams (s).
+    pub time_increment: f32,
+    /// Time between scans (s).
+    pub scan_time: f32,
+    /// Closest valid range (m).
+    pub range_min: f32,
+    /// Farthest valid range (m).
+    pub range_max: f32,
+    /// Ranges (m).
+    pub ranges: Vec<f32>,
+    /// Intensities (device units), empty if the device gives none.
+    pub intensities: Vec<f32>,
+}
+ros_message!(
+    LaserScan,
+    "sensor_msgs",
+    "LaserScan",
+    ["std_msgs/msg/Header", "builtin_interfaces/msg/Time"],
+    "std_msgs/Header header\nfloat32 angle_min\nfloat32 angle_max\nfloat32 angle_increment\nfloat32 time_increment\nfloat32 scan_time\nfloat32 range_min\nfloat32 range_max\nfloat32[] ranges\nfloat32[] intensities\n"
+);
+
+/// `nav_msgs/Odometry`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Odometry {
+    /// Header (the odometry frame).
+    pub header: Header,
+    /// The body frame.
+    pub child_frame_id: String,
+    /// Pose in the header's frame.
+    pub pose: PoseWithCovariance,
+    /// Velocity in the child frame.
+    pub twist: TwistWithCovariance,
+}
+ros_message!(
+    Odometry,
+    "nav_msgs",
+    "Odometry",
+    [
+        "std_msgs/msg/Header",
+        "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/PoseWithCovariance",
+        "geometry_msgs/msg/Pose",
+        "geometry_msgs/msg/Point",
+        "geometry_msgs/msg/Quaternion",
+        "geometry_msgs/msg/TwistWithCovariance",
+        "geometry_msgs/msg/Twist",
+        "geometry_msgs/msg/Vector3"
+    ],
+    "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist\n"
+);
+
+/// `tf2_msgs/TFMessage`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TFMessage {
+    /// The transforms.
+    pub transforms: Vec<TransformStamped>,
+}
+ros_message!(
+    TFMessage,
+    "tf2_msgs",
+    "TFMessage",
+    [
+        "geometry_msgs/msg/TransformStamped",
+        "std_msgs/msg/Header",
+        "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/Transform",
+        "geometry_msgs/msg/Vector3",
+        "geometry_msgs/msg/Quaternion"
+    ],
+    "geometry_msgs/TransformStamped[] transforms\n"
+);
+
+/// `rosgraph_msgs/Clock`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Clock {
+    /// The simulated time.
+    pub clock: Time,
+}
+ros_message!(Clock, "rosgraph_msgs", "Clock", ["builtin_interfaces/msg/Time"], "builtin_interfaces/Time clock\n");
+
+/// CDR encapsulation header for little-endian plain CDR, as ROS 2 writes it.
+pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+
+/// Errors decoding a serialized message.
+#[derive(Debug, thiserror::Error)]
+pub enum DecodeError {
+    /// Fewer than the 4 bytes of the encapsulation header.
+    #[error("{ty}: {len} bytes is too short for a CDR message (4-byte header expected)")]
+    Short {
+        /// The message type.
+        ty: String,
+        /// How many bytes arrived.
+        len: usize,
+    },
+    /// An encapsulation other than plain CDR.
+    #[error("{ty}: unsupported CDR encapsulation {kind:#06x} (expected plain CDR, 0x0000 or 0x0001)")]
+    Encapsulation {
+        /// The message type.
+        ty: String,
+        /// The encapsulation kind read.
+        kind: u16,
+    },
+    /// The body does not decode.
+    #[error("{ty}: malformed CDR: {reason}")]
+    Malformed {
+        /// The message type.
+        ty: String,
+        /// What the decoder said.
+        reason: String,
+    },
+}
+
+/// Serializes a message as ROS 2 does: the CDR encapsulation header, then little-endian CDR.
+pub fn to_cdr<M: RosMessage>(m: &M) -> Vec<u8> {
+    let body =
+        cdr_encoding::to_vec::<M, byteorder::LittleEndian>(m).expect("CDR serialization of plain structs cannot fail");
+    let mut out = Vec::with_capacity(body.len() + 4);
+    out.extend_from_slice(&CDR_LE_HEADER);
+    out.extend_from_slice(&body);
+    out
+}
+
+/// Deserializes a message with its encapsulation header (either byte order).
+pub fn from_cdr<M: RosMessage>(bytes: &[u8]) -> Result<M, DecodeError> {
+    if bytes.len() < 4 {
+        return Err(DecodeError::Short { ty: M::type_name(), len: bytes.len() });
+    }
+    let kind = u16::from_be_bytes([bytes[0], bytes[1]]);
+    let body = &bytes[4..];
+    let result = match kind {
+        0x0000 => cdr_encoding::from_bytes::<M, byteorder::BigEndian>(body),
+        0x0001 => cdr_encoding::from_bytes::<M, byteorder::LittleEndian>(body),
+        _ => return Err(DecodeError::Encapsulation { ty: M::type_name(), kind }),
+    };
+    result.map(|(m, _)| m).map_err(|e| DecodeError::Malformed { ty: M::type_name(), reason: e.to_string() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quaternion_yaw_round_trips() {
+        for yaw in [-3.1, -1.0, 0.0, 0.5, 2.0, 3.1] {
+            let q = Quaternion::from_yaw(yaw);
+            assert!(q.is_unit(1e-12));
+            assert!((q.yaw() - yaw).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn time_converts() {
+        let t = Time::from_secs(12.25);
+        assert_eq!(t, Time { sec: 12, nanosec: 250_000_000 });
+        assert_eq!(t.as_nanos(), 12_250_000_000);
+        assert!((t.as_secs() - 12.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn schema_lists_every_dependency_once() {
+        let s = Odometry::schema_text();
+        assert!(s.starts_with("std_msgs/Header header\n"));
+        for dep in Odometry::DEPENDS {
+            let line = format!("MSG: {}\n", dep.replace("/msg/", "/"));
+            assert_eq!(s.matches(&line).count(), 1, "{dep}");
+        }
+        // Every type a definition names must be among the dependencies.
+        for ty in ["Header", "Time", "PoseWithCovariance", "Pose", "Point", "Quaternion", "Twist", "Vector3"] {
+            assert!(Odometry::DEPENDS.iter().any(|d| d.ends_with(&format!("/{ty}"))), "{ty}");
+        }
+    }
+
+    #[test]
+    fn truncated_and_foreign_bytes_are_errors() {
+        let scan = LaserScan { ranges: vec![1.0; 10], ..Default::default() };
+        let bytes = to_cdr(&scan);
+        for cut in [0, 3, 4, 10, bytes.len() - 1] {
+            assert!(from_cdr::<LaserScan>(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
+        let mut xcdr2 = bytes.clone();
+        xcdr2[1] = 0x07;
+        assert!(matches!(from_cdr::<LaserScan>(&xcdr2), Err(DecodeError::Encapsulation { .. })));
+        assert_eq!(from_cdr::<LaserScan>(&bytes).unwrap(), scan);
+    }
+}

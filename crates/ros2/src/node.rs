@@ -1,0 +1,551 @@
+//! `rlnav ros2 node`: a policy driving a robot over ROS 2. [`PolicyNode`] is the logic, with
+//! no DDS in it (fed messages and the time, it answers the command and the state), so every
+//! safety rule is tested directly; [`run_node`] wires it to the robot's topics.
+//!
+//! Safe by construction: without a goal, with a stale or unusable scan or pose, with NaN
+//! anywhere, or at the goal, the command is zero and the state says why; when good data
+//! returns, it drives again.
+
+use crate::bus::{Bus, BusError, Qos, Reach, drain};
+use crate::msg::{self, LaserScan, Odometry, PoseStamped, StringMsg, TFMessage, Time, TwistStamped};
+use rlnav_policy::PolicyRunner;
+use rlnav_sim::config::{ConfigError, Invalid, Validate, check_positive};
+use rlnav_sim::{Controller, Pose2, RobotObservation, Twist, Vec2, wrap_angle};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// The node's parameters (a ROS-style YAML; every field has a default).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NodeParams {
+    /// `sensor_msgs/LaserScan` input.
+    pub scan_topic: String,
+    /// `nav_msgs/Odometry` input (pose and velocity).
+    pub odom_topic: String,
+    /// `geometry_msgs/PoseStamped` input for the pose instead of odometry (motion capture);
+    /// empty: use odometry. The velocity is then differentiated from the poses.
+    pub pose_topic: String,
+    /// `geometry_msgs/PoseStamped` goals (RViz2's "2D Goal Pose").
+    pub goal_topic: String,
+    /// `/tf` input, to bring goals given in another frame into the pose frame.
+    pub tf_topic: String,
+    /// Velocity command output.
+    pub cmd_vel_topic: String,
+    /// Publish `geometry_msgs/TwistStamped` instead of `Twist` (ROS 2 Jazzy's Nav2 default).
+    pub cmd_vel_stamped: bool,
+    /// Frame of stamped commands.
+    pub base_frame: String,
+    /// `std_msgs/String` state output.
+    pub status_topic: String,
+    /// A goal `[x, y]` in the pose frame, used until one arrives on the goal topic.
+    pub goal: Option<[f64; 2]>,
+    /// Distance at which the goal counts as reached (m); default: the policy's contract.
+    pub goal_tolerance: Option<f32>,
+    /// Cap on |linear| (m/s) below the policy's limits.
+    pub max_linear: Option<f32>,
+    /// Cap on |angular| (rad/s) below the policy's limits.
+    pub max_angular: Option<f32>,
+    /// Stop when no scan arrived for this long (s).
+    pub scan_timeout: f64,
+    /// Stop when no pose arrived for this long (s).
+    pub pose_timeout: f64,
+    /// Yaw of the lidar in the base frame (rad), for a lidar mounted rotated.
+    pub lidar_yaw_offset: f32,
+    /// Compute a command as each scan arrives (`scan`) or every control period (`timer`).
+    pub trigger: Trigger,
+}
+
+/// When the node computes a command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Trigger {
+    /// Every control period of the policy's contract.
+    Timer,
+    /// On each new scan (at most once per half control period).
+    Scan,
+}
+
+impl Default for NodeParams {
+    fn default() -> Self {
+        Self {
+            scan_topic: "/scan".into(),
+            odom_topic: "/odom".into(),
+            pose_topic: String::new(),
+            goal_topic: "/goal_pose".into(),
+            tf_topic: "/tf".into(),
+            cmd_vel_topic: "/cmd_vel".into(),
+            cmd_vel_stamped: false,
+            base_frame: "base_link".into(),
+            status_topic: "/rlnav/status".into(),
+            goal: None,
+            goal_tolerance: None,
+            max_linear: None,
+            max_angular: None,
+            scan_timeout: 0.5,
+            pose_timeout: 0.5,
+            lidar_yaw_offset: 0.0,
+            trigger: Trigger::Timer,
+        }
+    }
+}
+
+impl NodeParams {
+    /// Reads a parameter file. Besides the flat form, ROS 2's `NODE: {ros__parameters: ...}`
+    /// nesting is accepted, so a launch file's parameters work unchanged.
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|error| ConfigError::Io { file: file.clone(), error })?;
+        Self::from_yaml(&file, &text)
+    }
+
+    /// Parses parameters from YAML text (`source` names it in errors).
+    pub fn from_yaml(source: &str, text: &str) -> Result<Self, ConfigError> {
+        let parse = |e: serde_norway::Error| ConfigError::Parse { file: source.to_string(), message: e.to_string() };
+        let value: serde_norway::Value = serde_norway::from_str(text).map_err(parse)?;
+        let nested = value
+            .as_mapping()
+            .filter(|m| m.len() == 1)
+            .and_then(|m| m.values().next())
+            .and_then(|v| v.get("ros__parameters"))
+            .cloned();
+        let flat = serde_norway::to_string(&nested.unwrap_or(value)).map_err(parse)?;
+        rlnav_sim::config::from_yaml_str(source, &flat)
+    }
+}
+
+impl Validate for NodeParams {
+    fn validate(&self) -> Result<(), Invalid> {
+        for (k, v) in [("scan_timeout", self.scan_timeout), ("pose_timeout", self.pose_timeout)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Invalid::new(k, "a positive number of seconds"));
+            }
+        }
+        for (k, v) in [
+            ("goal_tolerance", self.goal_tolerance),
+            ("max_linear", self.max_linear),
+            ("max_angular", self.max_angular),
+        ] {
+            if let Some(v) = v {
+                check_positive(k, v)?;
+            }
+        }
+        if self.goal.is_some_and(|g| !g.iter().all(|x| x.is_finite())) {
+            return Err(Invalid::new("goal", "two finite numbers [x, y]"));
+        }
+        for (k, t) in [
+            ("scan_topic", &self.scan_topic),
+            ("odom_topic", &self.odom_topic),
+            ("goal_topic", &self.goal_topic),
+            ("cmd_vel_topic", &self.cmd_vel_topic),
+        ] {
+            if !t.starts_with('/') {
+                return Err(Invalid::new(k, "an absolute topic name, starting with `/`"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What the node is doing.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NodeState {
+    /// No goal yet.
+    Idle,
+    /// Following the policy.
+    Driving,
+    /// Within the goal tolerance; waiting for a new goal.
+    GoalReached,
+    /// Commanding zero velocity because of the reason given.
+    Stopped(String),
+}
+
+impl std::fmt::Display for NodeState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NodeState::Idle => f.write_str("idle"),
+            NodeState::Driving => f.write_str("driving"),
+            NodeState::GoalReached => f.write_str("goal reached"),
+            NodeState::Stopped(why) => write!(f, "stopped: {why}"),
+        }
+    }
+}
+
+/// A pose sample with the time it arrived.
+#[derive(Clone, Copy, Debug)]
+struct PoseSample {
+    pose: Pose2,
+    velocity: Twist,
+    received: f64,
+}
+
+/// The policy node's logic.
+pub struct PolicyNode {
+    params: NodeParams,
+    runner: PolicyRunner,
+    tolerance: f32,
+    scan: Option<(rlnav_sim::LaserScan, f64, Time)>,
+    pose: Option<PoseSample>,
+    pose_frame: Option<String>,
+    goal: Option<Vec2>,
+    pending_goal: Option<PoseStamped>,
+    tf: BTreeMap<(String, String), Pose2>,
+    reached: bool,
+    last_command: Twist,
+    started: Option<f64>,
+    state: NodeState,
+    /// Messages that did not decode or made no sense.
+    pub rejected: u64,
+}
+
+fn finite_pose(p: &msg::Pose) -> Option<Pose2> {
+    let (x, y) = (p.position.x, p.position.y);
+    if !(x.is_finite() && y.is_finite() && p.orientation.is_unit(1e-2)) {
+        return None;
+    }
+    Some(Pose2::new(x as f32, y as f32, p.orientation.yaw() as f32))
+}
+
+impl PolicyNode {
+    /// The node for `runner` with `params`.
+    pub fn new(runner: PolicyRunner, params: NodeParams) -> Self {
+        let tolerance = params.goal_tolerance.unwrap_or(runner.contract().goal_tolerance);
+        let goal = params.goal.map(|g| Vec2::new(g[0] as f32, g[1] as f32));
+        Self {
+            params,
+            runner,
+            tolerance,
+            scan: None,
+            pose: None,
+            pose_frame: None,
+            goal,
+            pending_goal: None,
+            tf: BTreeMap::new(),
+            reached: false,
+            last_command: Twist::default(),
+            started: None,
+            state: NodeState::Idle,
+            rejected: 0,
+        }
+    }
+
+    /// The policy's control period (s).
+    pub fn control_period(&self) -> f64 {
+        self.runner.contract().control_period as f64
+    }
+
+    /// The current state.
+    pub fn state(&self) -> &NodeState {
+        &self.state
+    }
+
+    /// The goal in the pose frame, if any.
+    pub fn goal(&self) -> Option<Vec2> {
+        self.goal
+    }
+
+    /// A scan arrived at `now` (s, the node's clock).
+    pub fn on_scan(&mut self, m: &LaserScan, now: f64) {
+        // Out-of-order scans (an older stamp than the one held) are dropped; the stamp's
+        // absolute value is not trusted (robots' clocks drift), arrival time is.
+        if let Some((_, _, stamp)) = &self.scan {
+            if m.header.stamp < *stamp {
+                self.rejected += 1;
+                return;
+            }
+        }
+        let scan = rlnav_sim::LaserScan {
+            angle_min: m.angle_min,
+            angle_increment: m.angle_increment,
+            range_min: m.range_min,
+            range_max: m.range_max,
+            ranges: m.ranges.clone(),
+        };
+        self.scan = Some((scan, now, m.header.stamp));
+    }
+
+    /// Odometry arrived (ignored when the pose comes from a pose topic).
+    pub fn on_odom(&mut self, m: &Odometry, now: f64) {
+        if !self.params.pose_topic.is_empty() {
+            return;
+        }
+        let t = &m.twist.twist;
+        match finite_pose(&m.pose.pose) {
+            Some(pose) if t.linear.x.is_finite() && t.angular.z.is_finite() => {
+                let velocity = Twist::new(t.linear.x as f32, t.angular.z as f32);
+                self.set_pose(PoseSample { pose, velocity, received: now }, &m.header.frame_id);
+            }
+            _ => {
+                self.rejected += 1;
+                self.pose = None;
+            }
+        }
+    }
+
+    /// A pose (motion capture) arrived; the velocity is its difference from the last one.
+    pub fn on_pose(&mut self, m: &PoseStamped, now: f64) {
+        let Some(pose) = finite_pose(&m.pose) else {
+            self.rejected += 1;
+            self.pose = None;
+            return;
+        };
+        let velocity = match self.pose {
+            Some(prev) if now - prev.received > 1e-3 => {
+                let dt = (now - prev.received) as f32;
+                let d = pose.position() - prev.pose.position();
+                let forward = d.x * prev.pose.yaw.cos() + d.y * prev.pose.yaw.sin();
+                Twist::new(forward / dt, wrap_angle(pose.yaw - prev.pose.yaw) / dt)
+            }
+            Some(prev) => prev.velocity,
+            None => Twist::default(),
+        };
+        self.set_pose(PoseSample { pose, velocity, received: now }, &m.header.frame_id);
+    }
+
+    fn set_pose(&mut self, sample: PoseSample, frame: &str) {
+        self.pose = Some(sample);
+        if self.pose_frame.as_deref() != Some(frame) {
+            self.pose_frame = Some(frame.to_string());
+        }
+        if let Some(g) = self.pending_goal.take() {
+            self.on_goal(&g);
+        }
+    }
+
+    /// Transforms arrived; they are kept to bring goals into the pose frame.
+    pub fn on_tf(&mut self, m: &TFMessage) {
+        for t in &m.transforms {
+            let tr = &t.transform;
+            let ok = tr.translation.x.is_finite() && tr.translation.y.is_finite() && tr.rotation.is_unit(1e-2);
+            if !ok {
+                self.rejected += 1;
+                continue;
+            }
+            let p = Pose2::new(tr.translation.x as f32, tr.translation.y as f32, tr.rotation.yaw() as f32);
+            self.tf.insert((t.header.frame_id.clone(), t.child_frame_id.clone()), p);
+        }
+    }
+
+    /// The pose of frame `child` in frame `parent`, through the transforms known (either
+    /// direction, any chain).
+    fn lookup(&self, parent: &str, child: &str) -> Option<Pose2> {
+        if parent == child {
+            return Some(Pose2::default());
+        }
+        // Breadth-first over the frame graph; each step composes one transform.
+        let mut seen = vec![parent.to_string()];
+        let mut frontier = vec![(parent.to_string(), Pose2::default())];
+        while let Some((frame, pose)) = frontier.pop() {
+            for ((a, b), t) in &self.tf {
+                let next = if *a == frame {
+                    Some((b, pose.compose(t)))
+                } else if *b == frame {
+                    Some((a, pose.compose(&t.inverse())))
+                } else {
+                    None
+                };
+                if let Some((f, p)) = next {
+                    if f == child {
+                        return Some(p);
+                    }
+                    if !seen.contains(f) {
+                        seen.push(f.clone());
+                        frontier.insert(0, (f.clone(), p));
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    /// A goal arrived. A goal in another frame than the pose's is transformed when the
+    /// transform is known, and refused (the node stops) when it is not.
+    pub fn on_goal(&mut self, m: &PoseStamped) {
+        let (x, y) = (m.pose.position.x, m.pose.position.y);
+        if !(x.is_finite() && y.is_finite()) {
+            self.rejected += 1;
+            return;
+        }
+        let Some(pose_frame) = self.pose_frame.clone() else {
+            // No pose yet: keep it until the pose frame is known.
+            self.pending_goal = Some(m.clone());
+            return;
+        };
+        let frame = &m.header.frame_id;
+        let goal = if frame.is_empty() || *frame == pose_frame {
+            Some(Vec2::new(x as f32, y as f32))
+        } else {
+            self.lookup(&pose_frame, frame).map(|t| t.to_parent(Vec2::new(x as f32, y as f32)))
+        };
+        match goal {
+            Some(g) => {
+                if self.goal != Some(g) {
+                    self.goal = Some(g);
+                    self.reached = false;
+                    self.runner.reset();
+                }
+            }
+            None => {
+                self.goal = None;
+                self.state =
+                    NodeState::Stopped(format!("goal in frame `{frame}`, which has no transform to `{pose_frame}`"));
+            }
+        }
+    }
+
+    fn cap(&self, c: Twist) -> Twist {
+        let l = self.params.max_linear.unwrap_or(f32::INFINITY);
+        let a = self.params.max_angular.unwrap_or(f32::INFINITY);
+        Twist::new(c.linear.clamp(-l, l), c.angular.clamp(-a, a))
+    }
+
+    /// The command for time `now`, and the state it leaves the node in.
+    pub fn tick(&mut self, now: f64) -> Twist {
+        let (cmd, state) = self.decide(now);
+        let cmd = if cmd.linear.is_finite() && cmd.angular.is_finite() { cmd } else { Twist::default() };
+        self.last_command = cmd;
+        self.state = state;
+        cmd
+    }
+
+    fn decide(&mut self, now: f64) -> (Twist, NodeState) {
+        let stop = |why: String| (Twist::default(), NodeState::Stopped(why));
+        if let NodeState::Stopped(why) = &self.state {
+            if self.goal.is_none() && why.starts_with("goal in frame") {
+                return (Twist::default(), self.state.clone());
+            }
+        }
+        let Some(goal) = self.goal else { return (Twist::default(), NodeState::Idle) };
+        let Some((scan, scan_at, _)) = &self.scan else { return stop("no scan yet".into()) };
+        if now - scan_at > self.params.scan_timeout {
+            return stop(format!("no scan for {:.2} s", now - scan_at));
+        }
+        let Some(pose) = self.pose else { return stop("no pose yet (or the last one was not finite)".into()) };
+        if now - pose.received > self.params.pose_timeout {
+            return stop(format!("no pose for {:.2} s", now - pose.received));
+        }
+        let d = (goal - pose.pose.position()).length();
+        if self.reached || d < self.tolerance {
+            self.reached = true;
+            return (Twist::default(), NodeState::GoalReached);
+        }
+        let started = *self.started.get_or_insert(now);
+        let obs = RobotObservation {
+            scan: scan.clone(),
+            scan_mount: Pose2::new(0.0, 0.0, self.params.lidar_yaw_offset),
+            pose: pose.pose,
+            velocity: pose.velocity,
+            goal,
+            last_command: self.last_command,
+            time: (now - started) as f32,
+        };
+        match self.runner.try_act(&obs) {
+            Ok(c) => (self.cap(c), NodeState::Driving),
+            Err(e) => stop(format!("policy input: {e}")),
+        }
+    }
+}
+
+/// A clock for the node: wall time since start, or the simulator's `/clock`.
+fn now_since(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64()
+}
+
+/// Runs the node until `stop` is set: subscribes, computes, publishes, and logs each change of
+/// state on stderr and on the status topic.
+pub fn run_node(
+    mut node: PolicyNode,
+    domain: u16,
+    reach: Reach,
+    stop: Arc<AtomicBool>,
+    mut on_command: impl FnMut(Twist, &NodeState),
+) -> Result<(), BusError> {
+    let p = node.params.clone();
+    let mut bus = Bus::new("rlnav_policy", domain, reach)?;
+    let scan_sub = bus.subscription::<LaserScan>(&p.scan_topic, Qos::SensorData)?;
+    let odom_sub =
+        if p.pose_topic.is_empty() { Some(bus.subscription::<Odometry>(&p.odom_topic, Qos::Default)?) } else { None };
+    let pose_sub = if p.pose_topic.is_empty() {
+        None
+    } else {
+        Some(bus.subscription::<PoseStamped>(&p.pose_topic, Qos::Default)?)
+    };
+    let goal_sub = bus.subscription::<PoseStamped>(&p.goal_topic, Qos::Default)?;
+    let tf_sub = bus.subscription::<TFMessage>(&p.tf_topic, Qos::Default)?;
+    let twist_pub =
+        if p.cmd_vel_stamped { None } else { Some(bus.publisher::<msg::Twist>(&p.cmd_vel_topic, Qos::Default)?) };
+    let stamped_pub =
+        if p.cmd_vel_stamped { Some(bus.publisher::<TwistStamped>(&p.cmd_vel_topic, Qos::Default)?) } else { None };
+    let status_pub = bus.publisher::<StringMsg>(&p.status_topic, Qos::Default)?;
+    let period = node.control_period();
+    let start = Instant::now();
+    let mut next_tick = 0.0;
+    let mut last_state = String::new();
+    let mut dropped = 0;
+    while !stop.load(Ordering::Relaxed) {
+        let now = now_since(start);
+        for m in drain(&tf_sub, &mut dropped) {
+            node.on_tf(&m);
+        }
+        if let Some(s) = &odom_sub {
+            for m in drain(s, &mut dropped) {
+                node.on_odom(&m, now);
+            }
+        }
+        if let Some(s) = &pose_sub {
+            for m in drain(s, &mut dropped) {
+                node.on_pose(&m, now);
+            }
+        }
+        for m in drain(&goal_sub, &mut dropped) {
+            node.on_goal(&m);
+        }
+        let scans = drain(&scan_sub, &mut dropped);
+        let new_scan = !scans.is_empty();
+        for m in &scans {
+            node.on_scan(m, now);
+        }
+        let due = match p.trigger {
+            Trigger::Timer => now >= next_tick,
+            Trigger::Scan => (new_scan && now >= next_tick) || now >= next_tick + period,
+        };
+        if due {
+            next_tick = match p.trigger {
+                Trigger::Timer => (next_tick + period).max(now),
+                Trigger::Scan => now + 0.5 * period,
+            };
+            let cmd = node.tick(now);
+            let twist = msg::Twist::planar(cmd.linear as f64, cmd.angular as f64);
+            // A failed publish (no reader yet, a full queue) is not a reason to stop ticking.
+            if let Some(pb) = &twist_pub {
+                let _ = pb.publish(twist);
+            }
+            if let Some(pb) = &stamped_pub {
+                let stamp =
+                    Time::from_secs(std::time::SystemTime::UNIX_EPOCH.elapsed().map_or(0.0, |d| d.as_secs_f64()));
+                let _ = pb.publish(TwistStamped { header: msg::Header::new(stamp, &p.base_frame), twist });
+            }
+            let state = node.state().to_string();
+            if state != last_state {
+                eprintln!("[rlnav_policy] {state}");
+                let _ = status_pub.publish(StringMsg { data: state.clone() });
+                last_state = state;
+            }
+            on_command(cmd, node.state());
+        }
+        node.rejected += std::mem::take(&mut dropped);
+        std::thread::sleep(Duration::from_micros(500));
+    }
+    // Leave the robot stopped.
+    let zero = msg::Twist::default();
+    if let Some(pb) = &twist_pub {
+        let _ = pb.publish(zero);
+    }
+    if let Some(pb) = &stamped_pub {
+        let _ = pb.publish(TwistStamped { header: msg::Header::new(Time::default(), &p.base_frame), twist: zero });
+    }
+    Ok(())
+}

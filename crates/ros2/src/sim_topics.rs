@@ -1,0 +1,150 @@
+//! What a simulated robot publishes each control step, as ROS 2 messages: the scan, the
+//! odometry, the transforms and the goal. The sim bridge sends these over DDS and the
+//! benchmark writes them to MCAP, so a recording and a live run carry the same bytes.
+
+use crate::msg::{
+    self, Covariance, Header, LaserScan, Odometry, Pose, PoseStamped, PoseWithCovariance, TFMessage, Time,
+    TransformStamped, TwistWithCovariance,
+};
+use rlnav_sim::{LidarSpec, NavEnv, Pose2, Twist, Vec2};
+
+/// The frame names of REP-105, as a robot's URDF and driver name them.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Frames {
+    /// The odometry (world) frame.
+    pub odom: String,
+    /// The robot body frame.
+    pub base: String,
+    /// The lidar frame.
+    pub laser: String,
+}
+
+impl Default for Frames {
+    fn default() -> Self {
+        Self { odom: "odom".into(), base: "base_link".into(), laser: "laser".into() }
+    }
+}
+
+/// One control step of a simulated robot, as messages.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimMessages {
+    /// The stamp every message carries.
+    pub stamp: Time,
+    /// `/scan`.
+    pub scan: LaserScan,
+    /// `/odom`.
+    pub odom: Odometry,
+    /// `/tf`: odom -> base_link and base_link -> laser.
+    pub tf: TFMessage,
+    /// `/cmd_vel` as applied in the step that led here.
+    pub cmd_vel: msg::Twist,
+    /// `/goal_pose`.
+    pub goal: PoseStamped,
+}
+
+/// A `LaserScan` for `ranges` taken by a lidar of `spec` (`+inf` where nothing returned).
+pub fn scan_message(spec: &LidarSpec, ranges: &[f32], stamp: Time, frame: &str, scan_time: f32) -> LaserScan {
+    let inc = spec.angle_increment();
+    LaserScan {
+        header: Header::new(stamp, frame),
+        angle_min: spec.angle_min,
+        angle_max: spec.angle_min + inc * (ranges.len().max(1) - 1) as f32,
+        angle_increment: inc,
+        time_increment: 0.0,
+        scan_time,
+        range_min: spec.range_min,
+        range_max: spec.range_max,
+        ranges: ranges.to_vec(),
+        intensities: Vec::new(),
+    }
+}
+
+/// `nav_msgs/Odometry` for a planar pose and body velocity.
+pub fn odometry_message(pose: Pose2, velocity: Twist, stamp: Time, frames: &Frames) -> Odometry {
+    // Small, nonzero variances for the planar terms and large ones for the unobserved, as
+    // planar robot drivers report them.
+    let mut pc = [0.0; 36];
+    let mut tc = [0.0; 36];
+    for (i, v) in [1e-4, 1e-4, 1e6, 1e6, 1e6, 1e-3].into_iter().enumerate() {
+        pc[i * 7] = v;
+        tc[i * 7] = v;
+    }
+    Odometry {
+        header: Header::new(stamp, &frames.odom),
+        child_frame_id: frames.base.clone(),
+        pose: PoseWithCovariance {
+            pose: Pose::planar(pose.x as f64, pose.y as f64, pose.yaw as f64),
+            covariance: Covariance(pc),
+        },
+        twist: TwistWithCovariance {
+            twist: msg::Twist::planar(velocity.linear as f64, velocity.angular as f64),
+            covariance: Covariance(tc),
+        },
+    }
+}
+
+/// The transforms a planar robot broadcasts: odom -> base and base -> laser (its mount).
+pub fn tf_message(pose: Pose2, mount: Pose2, stamp: Time, frames: &Frames) -> TFMessage {
+    TFMessage {
+        transforms: vec![
+            TransformStamped::planar(stamp, &frames.odom, &frames.base, pose.x as f64, pose.y as f64, pose.yaw as f64),
+            TransformStamped::planar(
+                stamp,
+                &frames.base,
+                &frames.laser,
+                mount.x as f64,
+                mount.y as f64,
+                mount.yaw as f64,
+            ),
+        ],
+    }
+}
+
+/// A goal position as `geometry_msgs/PoseStamped` (what RViz2's "2D Goal Pose" sends).
+pub fn goal_message(goal: Vec2, stamp: Time, frame: &str) -> PoseStamped {
+    PoseStamped { header: Header::new(stamp, frame), pose: Pose::planar(goal.x as f64, goal.y as f64, 0.0) }
+}
+
+impl SimMessages {
+    /// The messages for the environment's current state at time `t` (s).
+    pub fn of(env: &NavEnv, t: f64, frames: &Frames) -> Self {
+        let stamp = Time::from_secs(t);
+        let setup = env.setup();
+        let spec = setup.lidar.spec();
+        let mut obs = rlnav_sim::RobotObservation::default();
+        env.robot_observation(&mut obs);
+        Self {
+            stamp,
+            scan: scan_message(spec, env.ranges(), stamp, &frames.laser, setup.task.control_period),
+            odom: odometry_message(obs.pose, obs.velocity, stamp, frames),
+            tf: tf_message(obs.pose, spec.mount, stamp, frames),
+            cmd_vel: msg::Twist::planar(obs.last_command.linear as f64, obs.last_command.angular as f64),
+            goal: goal_message(env.goal(), stamp, &frames.odom),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    #[test]
+    fn messages_describe_the_simulated_robot() {
+        let setup = Arc::new(rlnav_sim::task::EnvSetup::from_scenario_name("static-room").unwrap());
+        let env = NavEnv::new(setup.clone(), 3).unwrap();
+        let m = SimMessages::of(&env, 2.5, &Frames::default());
+        let spec = setup.lidar.spec();
+        assert_eq!(m.scan.ranges.len(), spec.beams);
+        let last = spec.angle_min + spec.angle_increment() * (spec.beams - 1) as f32;
+        assert!((m.scan.angle_max - last).abs() < 1e-5, "angle_max is the last beam's angle");
+        assert_eq!(m.stamp, Time { sec: 2, nanosec: 500_000_000 });
+        let p = env.pose();
+        assert!((m.odom.pose.pose.position.x - p.x as f64).abs() < 1e-6);
+        assert!((m.odom.pose.pose.orientation.yaw() - p.yaw as f64).abs() < 1e-6);
+        assert_eq!(m.tf.transforms[0].child_frame_id, "base_link");
+        assert_eq!(m.tf.transforms[1].header.frame_id, "base_link");
+        assert_eq!(m.goal.pose.position.x, env.goal().x as f64);
+    }
+}

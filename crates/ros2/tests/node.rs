@@ -1,0 +1,206 @@
+//! The policy node's logic, fed messages directly: it drives with good data, stops with a
+//! reason on stale, missing or garbage data, at the goal and without one, resumes when good
+//! data returns, brings goals from other frames into the pose frame, and never panics or
+//! commands anything non-finite or beyond the policy's limits, whatever arrives.
+
+use proptest::prelude::*;
+use rlnav_policy::PolicyRunner;
+use rlnav_ros2::msg::*;
+use rlnav_ros2::node::{NodeParams, NodeState, PolicyNode};
+use rlnav_sim::Twist as SimTwist;
+
+const POLICY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
+
+fn node(params: NodeParams) -> PolicyNode {
+    PolicyNode::new(PolicyRunner::load(std::path::Path::new(POLICY), None).unwrap(), params)
+}
+
+fn scan(ranges: Vec<f32>, sec: i32) -> LaserScan {
+    let n = ranges.len().max(1) as f32;
+    let inc = std::f32::consts::TAU / n;
+    LaserScan {
+        header: Header::new(Time { sec, nanosec: 0 }, "laser"),
+        angle_min: -std::f32::consts::PI,
+        angle_max: -std::f32::consts::PI + inc * (n - 1.0),
+        angle_increment: inc,
+        scan_time: 0.1,
+        range_min: 0.05,
+        range_max: 8.0,
+        ranges,
+        ..Default::default()
+    }
+}
+
+fn odom(x: f64, y: f64, yaw: f64) -> Odometry {
+    Odometry {
+        header: Header::new(Time::default(), "odom"),
+        child_frame_id: "base_link".into(),
+        pose: PoseWithCovariance { pose: Pose::planar(x, y, yaw), ..Default::default() },
+        twist: TwistWithCovariance { twist: Twist::planar(0.2, 0.0), ..Default::default() },
+    }
+}
+
+fn goal(x: f64, y: f64, frame: &str) -> PoseStamped {
+    PoseStamped { header: Header::new(Time::default(), frame), pose: Pose::planar(x, y, 0.0) }
+}
+
+fn within_limits(c: SimTwist) -> bool {
+    c.linear.is_finite() && c.angular.is_finite() && c.linear.abs() <= 0.5 + 1e-6 && c.angular.abs() <= 0.5 + 1e-6
+}
+
+#[test]
+fn drives_with_good_data_and_stops_without_it() {
+    let mut n = node(NodeParams::default());
+    assert_eq!(n.tick(0.0), SimTwist::default());
+    assert_eq!(*n.state(), NodeState::Idle);
+    n.on_odom(&odom(0.0, 0.0, 0.0), 0.0);
+    n.on_goal(&goal(3.0, 1.0, "odom"));
+    assert_eq!(n.tick(0.0), SimTwist::default());
+    assert!(matches!(n.state(), NodeState::Stopped(w) if w.contains("no scan")), "{}", n.state());
+    n.on_scan(&scan(vec![2.5; 360], 1), 0.05);
+    let c = n.tick(0.1);
+    assert_eq!(*n.state(), NodeState::Driving);
+    assert!(c.linear > 0.0 && within_limits(c), "{c:?}");
+    // The scan goes stale: stop, with the reason.
+    n.on_odom(&odom(0.0, 0.0, 0.0), 0.6);
+    assert_eq!(n.tick(0.7), SimTwist::default());
+    assert!(matches!(n.state(), NodeState::Stopped(w) if w.contains("no scan for")), "{}", n.state());
+    // It comes back: drive again.
+    n.on_scan(&scan(vec![2.5; 360], 2), 0.75);
+    assert!(n.tick(0.8).linear > 0.0);
+    // Odometry goes stale.
+    n.on_scan(&scan(vec![2.5; 360], 3), 1.5);
+    assert_eq!(n.tick(1.5), SimTwist::default());
+    assert!(matches!(n.state(), NodeState::Stopped(w) if w.contains("no pose for")), "{}", n.state());
+    // NaN pose: stop until a finite one arrives.
+    n.on_odom(&odom(f64::NAN, 0.0, 0.0), 1.6);
+    assert_eq!(n.tick(1.6), SimTwist::default());
+    n.on_odom(&odom(0.1, 0.0, 0.0), 1.7);
+    assert!(n.tick(1.7).linear > 0.0);
+    // At the goal: zero, and it stays reached until a new goal arrives.
+    n.on_odom(&odom(2.95, 1.0, 0.0), 1.8);
+    assert_eq!(n.tick(1.8), SimTwist::default());
+    assert_eq!(*n.state(), NodeState::GoalReached);
+    n.on_goal(&goal(0.0, 3.0, "odom"));
+    assert!(n.tick(1.85).linear > 0.0);
+}
+
+#[test]
+fn speed_caps_and_goal_tolerance_come_from_the_parameters() {
+    let params = NodeParams::from_yaml(
+        "params.yaml",
+        "rlnav_policy:\n  ros__parameters:\n    max_linear: 0.15\n    max_angular: 0.1\n    goal: [3.0, 0.0]\n    goal_tolerance: 0.5\n",
+    )
+    .unwrap();
+    let mut n = node(params);
+    n.on_odom(&odom(0.0, 0.0, 0.0), 0.0);
+    n.on_scan(&scan(vec![3.0; 360], 1), 0.0);
+    let c = n.tick(0.0);
+    assert!(c.linear <= 0.15 && c.angular.abs() <= 0.1 && c.linear > 0.0, "{c:?}");
+    n.on_odom(&odom(2.6, 0.0, 0.0), 0.1);
+    n.tick(0.1);
+    assert_eq!(*n.state(), NodeState::GoalReached);
+    for bad in ["scan_timeout: 0\n", "max_linear: -1\n", "goal: [.nan, 0]\n", "scan_topik: /x\n"] {
+        let e = NodeParams::from_yaml("p.yaml", bad).unwrap_err().to_string();
+        assert!(e.contains("p.yaml"), "{e}");
+    }
+}
+
+#[test]
+fn goals_in_other_frames_are_transformed_or_refused() {
+    let mut n = node(NodeParams::default());
+    n.on_odom(&odom(0.0, 0.0, 0.0), 0.0);
+    // map -> odom: odom is 1 m along map's x, rotated a quarter turn.
+    n.on_tf(&TFMessage {
+        transforms: vec![TransformStamped::planar(
+            Time::default(),
+            "map",
+            "odom",
+            1.0,
+            0.0,
+            std::f64::consts::FRAC_PI_2,
+        )],
+    });
+    n.on_goal(&goal(1.0, 2.0, "map"));
+    let g = n.goal().unwrap();
+    // (1, 2) in map is (0, 2) from odom's origin in map, i.e. (2, 0) in odom.
+    assert!((g.x - 2.0).abs() < 1e-5 && g.y.abs() < 1e-5, "{g:?}");
+    n.on_goal(&goal(1.0, 2.0, "earth"));
+    n.on_scan(&scan(vec![3.0; 360], 1), 0.0);
+    assert_eq!(n.tick(0.0), SimTwist::default());
+    assert!(matches!(n.state(), NodeState::Stopped(w) if w.contains("earth")), "{}", n.state());
+}
+
+#[test]
+fn garbage_scans_stop_the_robot_and_good_ones_resume_it() {
+    let mut n = node(NodeParams { goal: Some([3.0, 0.0]), ..Default::default() });
+    n.on_odom(&odom(0.0, 0.0, 0.0), 0.0);
+    let garbage: Vec<LaserScan> = vec![
+        scan(vec![], 1),
+        scan(vec![f32::NAN; 360], 2),
+        LaserScan { angle_increment: 0.0, ..scan(vec![1.0; 360], 3) },
+        LaserScan { angle_increment: f32::NAN, ..scan(vec![1.0; 360], 4) },
+        // 90 degrees of view for a 360-degree policy.
+        LaserScan { angle_increment: 0.001, ..scan(vec![1.0; 1570], 5) },
+    ];
+    for (k, s) in garbage.iter().enumerate() {
+        n.on_scan(s, 0.01 * k as f64);
+        let c = n.tick(0.01 * k as f64);
+        assert_eq!(c, SimTwist::default(), "scan {k}");
+        assert!(matches!(n.state(), NodeState::Stopped(_)), "scan {k}: {}", n.state());
+    }
+    // Negative and infinite ranges are readings, not faults: finite, bounded commands.
+    n.on_scan(&scan((0..360).map(|i| if i % 2 == 0 { -1.0 } else { f32::INFINITY }).collect(), 6), 0.1);
+    assert!(within_limits(n.tick(0.1)));
+    n.on_scan(&scan(vec![2.0; 360], 7), 0.1);
+    assert!(n.tick(0.1).linear > 0.0, "resumes: {}", n.state());
+    // An older stamp than the scan held is dropped.
+    let before = n.rejected;
+    n.on_scan(&scan(vec![2.0; 360], 1), 0.2);
+    assert_eq!(n.rejected, before + 1);
+}
+
+fn rss_kib() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    s.lines().find(|l| l.starts_with("VmRSS:"))?.split_whitespace().nth(1)?.parse().ok()
+}
+
+#[test]
+fn a_flood_of_mixed_messages_keeps_memory_flat() {
+    let mut n = node(NodeParams { goal: Some([30.0, 0.0]), ..Default::default() });
+    let run = |n: &mut PolicyNode, k0: usize, count: usize| {
+        for k in k0..k0 + count {
+            let t = k as f64 * 0.001;
+            let len = [360, 0, 7, 360, 1000][k % 5];
+            let v = [1.0, f32::NAN, -3.0, f32::INFINITY, 0.2][k % 5];
+            n.on_scan(&scan(vec![v; len], k as i32), t);
+            n.on_odom(&odom((k % 17) as f64 * 100.0, 0.0, k as f64), t);
+            assert!(within_limits(n.tick(t)));
+        }
+    };
+    run(&mut n, 0, 2000);
+    let before = rss_kib();
+    run(&mut n, 2000, 20000);
+    if let (Some(a), Some(b)) = (before, rss_kib()) {
+        assert!(b < a + 8 * 1024, "RSS grew from {a} KiB to {b} KiB over 20,000 cycles");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+    /// Whatever a scan holds, the command is finite and within the policy's limits.
+    #[test]
+    fn any_scan_gives_a_safe_command(
+        ranges in prop::collection::vec(prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(-1.0f32), 0.0f32..20.0], 0..800),
+        angle_min in prop_oneof![Just(f32::NAN), -7.0f32..7.0],
+        inc in prop_oneof![Just(0.0f32), Just(f32::NAN), -0.1f32..0.1],
+        range_min in prop_oneof![Just(f32::NAN), 0.0f32..1.0],
+        range_max in prop_oneof![Just(f32::INFINITY), 0.0f32..30.0],
+    ) {
+        let mut n = node(NodeParams { goal: Some([2.0, 1.0]), ..Default::default() });
+        n.on_odom(&odom(0.0, 0.0, 0.3), 0.0);
+        let s = LaserScan { angle_min, angle_increment: inc, range_min, range_max, ranges, ..scan(vec![], 1) };
+        n.on_scan(&s, 0.0);
+        prop_assert!(within_limits(n.tick(0.0)));
+    }
+}
