@@ -131,7 +131,7 @@ enum Command {
         cycles: usize,
     },
     /// Run controllers on scenario suites with the same seeded episodes and write the
-    /// article's table (report.md, report.json). With no arguments: the shipped policy and
+    /// article's table (report.md, report.json). With no arguments: the shipped policies and
     /// DWA on paper-static and paper-dynamic.
     Bench {
         /// Suite: paper-static, paper-dynamic, random-static, random-dynamic, or a YAML file
@@ -139,7 +139,7 @@ enum Command {
         #[arg(long)]
         suite: Vec<String>,
         /// Controller: dwa, greedy, straight or rl:POLICY.onnx[:CONTRACT.yaml] (repeat;
-        /// default the shipped policy and dwa).
+        /// default the shipped policies and dwa).
         #[arg(long)]
         controller: Vec<String>,
         /// Robot for every scenario (default: each scenario's).
@@ -773,8 +773,8 @@ fn inspect(policy: &std::path::Path, contract: Option<&std::path::Path>) -> Resu
     Ok(())
 }
 
-/// The shipped policy `rlnav bench` runs by default.
-const SHIPPED_POLICY: &str = "policies/jetbot-static-mlp.onnx";
+/// The shipped policies `rlnav bench` runs by default (with DWA).
+const SHIPPED_POLICIES: [&str; 2] = ["policies/jetbot-static-mlp.onnx", "policies/jetbot-dynamic-lstm.onnx"];
 
 /// `rlnav bench`'s options besides the suites and controllers.
 struct BenchArgs {
@@ -790,7 +790,11 @@ fn bench(suites: Vec<String>, controllers: Vec<String>, a: &BenchArgs, out: &std
     use rlnav_bench::suite::{RunOptions, SuiteSpec, run_suite};
     let suites = if suites.is_empty() { vec!["paper-static".into(), "paper-dynamic".into()] } else { suites };
     let controllers =
-        if controllers.is_empty() { vec![format!("rl:{SHIPPED_POLICY}"), "dwa".into()] } else { controllers };
+        if controllers.is_empty() {
+            SHIPPED_POLICIES.iter().map(|p| format!("rl:{p}")).chain(["dwa".to_string()]).collect()
+        } else {
+            controllers
+        };
     anyhow::ensure!(a.episodes != Some(0), "--episodes must be at least 1");
     // Load every suite first: a bad name fails before any episode runs.
     let specs = suites.iter().map(|s| SuiteSpec::load(s)).collect::<Result<Vec<_>, _>>()?;
