@@ -789,12 +789,11 @@ struct BenchArgs {
 fn bench(suites: Vec<String>, controllers: Vec<String>, a: &BenchArgs, out: &std::path::Path) -> Result<()> {
     use rlnav_bench::suite::{RunOptions, SuiteSpec, run_suite};
     let suites = if suites.is_empty() { vec!["paper-static".into(), "paper-dynamic".into()] } else { suites };
-    let controllers =
-        if controllers.is_empty() {
-            SHIPPED_POLICIES.iter().map(|p| format!("rl:{p}")).chain(["dwa".to_string()]).collect()
-        } else {
-            controllers
-        };
+    let controllers = if controllers.is_empty() {
+        SHIPPED_POLICIES.iter().map(|p| format!("rl:{p}")).chain(["dwa".to_string()]).collect()
+    } else {
+        controllers
+    };
     anyhow::ensure!(a.episodes != Some(0), "--episodes must be at least 1");
     // Load every suite first: a bad name fails before any episode runs.
     let specs = suites.iter().map(|s| SuiteSpec::load(s)).collect::<Result<Vec<_>, _>>()?;

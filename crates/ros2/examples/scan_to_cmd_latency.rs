@@ -22,7 +22,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let params = NodeParams { goal: Some([30.0, 0.0]), trigger: Trigger::Scan, ..Default::default() };
     let stop = Arc::new(AtomicBool::new(false));
     let node_stop = stop.clone();
-    let node = std::thread::spawn(move || run_node(PolicyNode::new(runner, params), domain, Reach::Localhost, node_stop, |_, _| {}));
+    let node = std::thread::spawn(move || {
+        run_node(PolicyNode::new(runner, params), domain, Reach::Localhost, node_stop, |_, _| {})
+    });
 
     let mut bus = Bus::new("latency_robot", domain, Reach::Localhost)?;
     let scan_pub = bus.publisher::<LaserScan>("/scan", Qos::SensorData)?;

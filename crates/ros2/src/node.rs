@@ -11,6 +11,7 @@ use crate::msg::{self, LaserScan, Odometry, PoseStamped, StringMsg, TFMessage, T
 use rlnav_policy::PolicyRunner;
 use rlnav_sim::config::{ConfigError, Invalid, Validate, check_positive};
 use rlnav_sim::{Controller, Pose2, RobotObservation, Twist, Vec2, wrap_angle};
+use rustdds::mio1::{Events, Interest, Poll, Token};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -480,11 +481,35 @@ pub fn run_node(
     let stamped_pub =
         if p.cmd_vel_stamped { Some(bus.publisher::<TwistStamped>(&p.cmd_vel_topic, Qos::Default)?) } else { None };
     let status_pub = bus.publisher::<StringMsg>(&p.status_topic, Qos::Default)?;
+    // Wake on arriving data rather than polling on a timer: the scan-to-command latency is
+    // then DDS's, not a sleep's.
+    let mut poll = Poll::new().map_err(|e| BusError::Create { what: "poll".into(), message: e.to_string() })?;
+    let mut events = Events::with_capacity(16);
+    let reg = poll.registry();
+    let watch = |r: &mut dyn rustdds::mio1::event::Source, k: usize| {
+        reg.register(r, Token(k), Interest::READABLE)
+            .map_err(|e| BusError::Create { what: "poll registration".into(), message: e.to_string() })
+    };
+    let mut scan_sub = scan_sub;
+    let mut goal_sub = goal_sub;
+    let mut tf_sub = tf_sub;
+    watch(&mut scan_sub, 0)?;
+    watch(&mut goal_sub, 1)?;
+    watch(&mut tf_sub, 2)?;
+    let mut odom_sub = odom_sub;
+    if let Some(s) = odom_sub.as_mut() {
+        watch(s, 3)?;
+    }
+    let mut pose_sub = pose_sub;
+    if let Some(s) = pose_sub.as_mut() {
+        watch(s, 4)?;
+    }
     let period = node.control_period();
     let start = Instant::now();
     let mut next_tick = 0.0;
     let mut last_state = String::new();
     let mut dropped = 0;
+    let mut pending_scan = false;
     while !stop.load(Ordering::Relaxed) {
         let now = now_since(start);
         for m in drain(&tf_sub, &mut dropped) {
@@ -504,15 +529,16 @@ pub fn run_node(
             node.on_goal(&m);
         }
         let scans = drain(&scan_sub, &mut dropped);
-        let new_scan = !scans.is_empty();
+        pending_scan |= !scans.is_empty();
         for m in &scans {
             node.on_scan(m, now);
         }
         let due = match p.trigger {
             Trigger::Timer => now >= next_tick,
-            Trigger::Scan => (new_scan && now >= next_tick) || now >= next_tick + period,
+            Trigger::Scan => (pending_scan && now >= next_tick) || now >= next_tick + period,
         };
         if due {
+            pending_scan = false;
             next_tick = match p.trigger {
                 Trigger::Timer => (next_tick + period).max(now),
                 Trigger::Scan => now + 0.5 * period,
@@ -537,7 +563,15 @@ pub fn run_node(
             on_command(cmd, node.state());
         }
         node.rejected += std::mem::take(&mut dropped);
-        std::thread::sleep(Duration::from_micros(500));
+        // Sleep until data arrives or the next tick is due (at most 50 ms, to see `stop`).
+        let wait = (next_tick - now_since(start)).clamp(0.0, 0.05);
+        let wait = if p.trigger == Trigger::Scan && !pending_scan {
+            (next_tick + period - now_since(start)).clamp(0.0, 0.05)
+        } else {
+            wait
+        };
+        // An interrupted wait only means an early look at the readers.
+        let _ = poll.poll(&mut events, Some(Duration::from_secs_f64(wait)));
     }
     // Leave the robot stopped.
     let zero = msg::Twist::default();
