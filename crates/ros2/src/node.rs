@@ -250,10 +250,13 @@ impl PolicyNode {
 
     /// A scan arrived at `now` (s, the node's clock).
     pub fn on_scan(&mut self, m: &LaserScan, now: f64) {
-        // Out-of-order scans (an older stamp than the one held) are dropped; the stamp's
-        // absolute value is not trusted (robots' clocks drift), arrival time is.
+        // A scan stamped a little before the one held arrived out of order and is dropped.
+        // One stamped far before it means the sender's clock jumped (or the held stamp was
+        // bogus, far in the future), so it is taken: a single bad stamp must not lock the node
+        // out of every later scan. Staleness is judged by arrival time, never by stamps.
         if let Some((_, _, stamp)) = &self.scan {
-            if m.header.stamp < *stamp {
+            let behind = stamp.as_secs() - m.header.stamp.as_secs();
+            if behind > 0.0 && behind < 1.0 {
                 self.rejected += 1;
                 return;
             }

@@ -154,9 +154,17 @@ fn garbage_scans_stop_the_robot_and_good_ones_resume_it() {
     assert!(within_limits(n.tick(0.1)));
     n.on_scan(&scan(vec![2.0; 360], 7), 0.1);
     assert!(n.tick(0.1).linear > 0.0, "resumes: {}", n.state());
-    // An older stamp than the scan held is dropped.
+    // A scan stamped just before the one held arrived out of order: dropped.
     let before = n.rejected;
-    n.on_scan(&scan(vec![2.0; 360], 1), 0.2);
+    let mut late = scan(vec![2.0; 360], 6);
+    late.header.stamp.nanosec = 900_000_000;
+    n.on_scan(&late, 0.2);
+    assert_eq!(n.rejected, before + 1);
+    // One far-future stamp must not lock out every later scan.
+    n.on_scan(&scan(vec![2.0; 360], 2_000_000_000), 0.3);
+    n.on_scan(&scan(vec![2.0; 360], 8), 0.9);
+    n.on_odom(&odom(0.0, 0.0, 0.0), 0.9);
+    assert!(n.tick(0.9).linear > 0.0, "later scans are still used: {}", n.state());
     assert_eq!(n.rejected, before + 1);
 }
 
