@@ -44,7 +44,6 @@ pub struct SimBridge {
     cmd_at: f64,
     cmd_timeout: f64,
     time: f64,
-    episode_start: f64,
 }
 
 /// The task for a robot driven from outside: any command the robot can execute is applied
@@ -72,7 +71,6 @@ impl SimBridge {
             cmd_at: f64::NEG_INFINITY,
             cmd_timeout: opts.cmd_timeout,
             time: 0.0,
-            episode_start: 0.0,
         })
     }
 
@@ -112,7 +110,6 @@ impl SimBridge {
         if out.terminated || out.truncated {
             let stats = self.env.last_episode();
             self.env.reset()?;
-            self.episode_start = self.time;
             return Ok(stats);
         }
         Ok(None)

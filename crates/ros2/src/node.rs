@@ -193,6 +193,8 @@ pub struct PolicyNode {
     pose_frame: Option<String>,
     goal: Option<Vec2>,
     pending_goal: Option<PoseStamped>,
+    /// Why the last goal could not be used (it stops the robot until a usable goal arrives).
+    goal_error: Option<String>,
     tf: BTreeMap<(String, String), Pose2>,
     reached: bool,
     last_command: Twist,
@@ -224,6 +226,7 @@ impl PolicyNode {
             pose_frame: None,
             goal,
             pending_goal: None,
+            goal_error: None,
             tf: BTreeMap::new(),
             reached: false,
             last_command: Twist::default(),
@@ -386,6 +389,7 @@ impl PolicyNode {
         };
         match goal {
             Some(g) => {
+                self.goal_error = None;
                 if self.goal != Some(g) {
                     self.goal = Some(g);
                     self.reached = false;
@@ -394,8 +398,7 @@ impl PolicyNode {
             }
             None => {
                 self.goal = None;
-                self.state =
-                    NodeState::Stopped(format!("goal in frame `{frame}`, which has no transform to `{pose_frame}`"));
+                self.goal_error = Some(format!("goal in frame `{frame}`, which has no transform to `{pose_frame}`"));
             }
         }
     }
@@ -417,10 +420,8 @@ impl PolicyNode {
 
     fn decide(&mut self, now: f64) -> (Twist, NodeState) {
         let stop = |why: String| (Twist::default(), NodeState::Stopped(why));
-        if let NodeState::Stopped(why) = &self.state {
-            if self.goal.is_none() && why.starts_with("goal in frame") {
-                return (Twist::default(), self.state.clone());
-            }
+        if let Some(why) = &self.goal_error {
+            return stop(why.clone());
         }
         let Some(goal) = self.goal else { return (Twist::default(), NodeState::Idle) };
         let Some((scan, scan_at, _)) = &self.scan else { return stop("no scan yet".into()) };
@@ -453,7 +454,7 @@ impl PolicyNode {
     }
 }
 
-/// A clock for the node: wall time since start, or the simulator's `/clock`.
+/// The node's clock: wall time since it started (it does not follow `/clock`).
 fn now_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64()
 }
