@@ -42,6 +42,7 @@ pub fn training_svg(csv: &Path, out: &Path) -> Result<(), String> {
         return Ok(());
     }
     let err = |e: &dyn std::fmt::Display| format!("{}: {e}", out.display());
+    register_font();
     let root = SVGBackend::new(out, (900, 640)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let (top, bottom) = root.split_vertically(320);
@@ -92,4 +93,16 @@ pub fn training_svg(csv: &Path, out: &Path) -> Result<(), String> {
     chart.draw_series(evals.iter().map(|p| Circle::new(*p, 3, RED.filled()))).map_err(|e| err(&e))?;
     chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))
+}
+
+/// Registers the embedded font (DejaVu Sans) for plot text once per process. plotters lays
+/// text out with ab_glyph (the feature the benchmark's PNG figures need), which has no font
+/// unless one is registered; rlnav-bench registers the same file for its figures.
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let font: &'static [u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
+        // The font is ours and known good; a failure would only drop the text.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, font);
+    });
 }
