@@ -66,6 +66,26 @@ pub fn measure_latency(
     })
 }
 
+/// Times each controller spec (`dwa`, `rl:FILE`, ...) on `setup`, one after another on this
+/// thread, for the benchmark's per-cycle compute table.
+pub fn measure_controllers(
+    specs: &[String],
+    setup: &Arc<EnvSetup>,
+    cycles: usize,
+    seed: u64,
+) -> Result<Vec<LatencyReport>, crate::suite::BenchError> {
+    let mut out = Vec::new();
+    for spec in specs {
+        let bad = |message: String| crate::suite::BenchError::Controller { name: spec.clone(), message };
+        let mut c = crate::controllers::for_setup(spec, setup).map_err(|e| bad(e.to_string()))?;
+        let mut r = measure_latency(c.as_mut(), setup.clone(), cycles, (cycles / 10).min(200), seed)
+            .map_err(|e| bad(e.to_string()))?;
+        r.controller = spec.clone();
+        out.push(r);
+    }
+    Ok(out)
+}
+
 /// The per-cycle compute table (Markdown) for `reports` measured on `scenario`.
 pub fn markdown(reports: &[LatencyReport], scenario: &str) -> String {
     let mut s = format!(

@@ -150,3 +150,15 @@ fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
         .is_err()
     );
 }
+
+#[test]
+fn per_cycle_compute_times_every_controller_and_refuses_unknown_ones() {
+    let setup = rlnav_bench::suite::suite_setups(&SuiteSpec::load("paper-static").unwrap(), None).unwrap().remove(0);
+    let specs = vec!["greedy".to_string(), "dwa".to_string()];
+    let r = rlnav_bench::latency::measure_controllers(&specs, &setup, 50, 0).unwrap();
+    assert_eq!(r.iter().map(|x| x.controller.as_str()).collect::<Vec<_>>(), ["greedy", "dwa"]);
+    assert!(r.iter().all(|x| x.cycles == 50 && x.p50_us > 0.0 && x.p99_us >= x.p50_us && x.beams == 360));
+    let md = rlnav_bench::latency::markdown(&r, "paper-static-1");
+    assert_eq!(md.lines().filter(|l| l.starts_with("| greedy") || l.starts_with("| dwa")).count(), 2, "{md}");
+    assert!(rlnav_bench::latency::measure_controllers(&["psychic".into()], &setup, 5, 0).is_err());
+}

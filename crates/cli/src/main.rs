@@ -846,13 +846,7 @@ fn bench(suites: Vec<String>, controllers: Vec<String>, a: &BenchArgs, out: &std
     let mut timing = Vec::new();
     if a.timing_cycles > 0 {
         let setup = rlnav_bench::suite::suite_setups(&specs[0], a.robot.as_deref())?.remove(0);
-        for c in &controllers {
-            let mut ctl = rlnav_bench::controllers::for_setup(c, &setup)?;
-            let mut r =
-                rlnav_bench::latency::measure_latency(ctl.as_mut(), setup.clone(), a.timing_cycles, 200, a.seed)?;
-            r.controller = c.clone();
-            timing.push(r);
-        }
+        timing = rlnav_bench::latency::measure_controllers(&controllers, &setup, a.timing_cycles, a.seed)?;
         let t = rlnav_bench::latency::markdown(&timing, &setup.scenario.spec().name);
         println!("{t}");
         md += &t;

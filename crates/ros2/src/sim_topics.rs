@@ -112,14 +112,13 @@ impl SimMessages {
         let stamp = Time::from_secs(t);
         let setup = env.setup();
         let spec = setup.lidar.spec();
-        let mut obs = rlnav_sim::RobotObservation::default();
-        env.robot_observation(&mut obs);
+        let (pose, cmd) = (env.pose(), env.last_command());
         Self {
             stamp,
             scan: scan_message(spec, env.ranges(), stamp, &frames.laser, setup.task.control_period),
-            odom: odometry_message(obs.pose, obs.velocity, stamp, frames),
-            tf: tf_message(obs.pose, spec.mount, stamp, frames),
-            cmd_vel: msg::Twist::planar(obs.last_command.linear as f64, obs.last_command.angular as f64),
+            odom: odometry_message(pose, env.velocity(), stamp, frames),
+            tf: tf_message(pose, spec.mount, stamp, frames),
+            cmd_vel: msg::Twist::planar(cmd.linear as f64, cmd.angular as f64),
             goal: goal_message(env.goal(), stamp, &frames.odom),
         }
     }

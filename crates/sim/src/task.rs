@@ -769,6 +769,16 @@ impl NavEnv {
         self.drive.pose
     }
 
+    /// The measured body velocity (what odometry reports).
+    pub fn velocity(&self) -> Twist {
+        self.drive.velocity
+    }
+
+    /// The command given at the previous control step (before latency).
+    pub fn last_command(&self) -> Twist {
+        self.last_command
+    }
+
     /// The command applied to the wheels in the last control step (after latency).
     pub fn applied_command(&self) -> Twist {
         self.applied
