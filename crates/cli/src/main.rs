@@ -588,8 +588,26 @@ fn train(
         summary.env_steps,
         summary.wall_s,
         summary.steps_per_s,
-        if summary.interrupted { ", stopped early: resume with --resume" } else { "" }
+        if summary.interrupted {
+            ", stopped early: resume with --resume"
+        } else if summary.reached_stop_target {
+            ", stopped at eval.stop_at_success"
+        } else {
+            ""
+        }
     );
+    for (target, m) in [("90%", summary.first_90), ("95%", summary.first_95)] {
+        match m {
+            Some(m) => println!(
+                "evaluation first reached {target} after epoch {} ({} env steps, {:.1} s): {:.1}%",
+                m.epoch,
+                m.env_steps,
+                m.wall_s,
+                100.0 * m.success_rate
+            ),
+            None => println!("evaluation never reached {target}"),
+        }
+    }
     if let Some(e) = summary.final_eval {
         println!(
             "evaluation of the epoch-{} policy on {} ({} episodes in scenes not seen in training): success {:.1}%, collision {:.1}%, timeout {:.1}%",

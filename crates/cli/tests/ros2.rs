@@ -65,9 +65,15 @@ fn node_drives_the_sim_bridge_to_the_goal_of_a_static_scene() {
     assert!(stats["final_distance"].as_f64().unwrap() < 0.3);
 }
 
+// The closed loop runs in real time, so its timing (and so the box's position when the robot
+// arrives) varies from run to run and machine to machine: the scene is one where the shipped
+// policy's outcome does not hinge on that timing. In simulation the policy passed the 0.1 m/s
+// box in 200 of 200 seeded episodes, but the 0.2 m/s box in only 89 of 100 (`rlnav eval
+// --policy policies/jetbot-static-mlp.onnx --scenario paper-dynamic-box0N --episodes N`), which
+// would make a one-episode test fail about one run in ten.
 #[test]
 fn node_passes_a_box_moving_across_the_path_without_touching_it() {
-    let stats = closed_loop("paper-dynamic-box02", 0, 62);
+    let stats = closed_loop("paper-dynamic-box01", 0, 62);
     assert_ne!(stats["outcome"], "collision", "{stats}");
     assert_eq!(stats["outcome"], "success", "{stats}");
 }

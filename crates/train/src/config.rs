@@ -157,11 +157,14 @@ pub struct EvalConfig {
     pub envs: usize,
     /// Evaluate every this many epochs (0: only at the end).
     pub every: usize,
+    /// Stop the run once a periodic evaluation reaches this success rate (absent: run all
+    /// `max_epochs`). The final test still runs, on fresh episodes.
+    pub stop_at_success: Option<f32>,
 }
 
 impl Default for EvalConfig {
     fn default() -> Self {
-        Self { scenario: "random-static".into(), episodes: 200, envs: 50, every: 20 }
+        Self { scenario: "random-static".into(), episodes: 200, envs: 50, every: 20, stop_at_success: None }
     }
 }
 
@@ -253,6 +256,12 @@ impl Validate for RunConfig {
         check_range("train.critic_coef", t.critic_coef, 0.0, 1000.0)?;
         check_range("train.entropy_coef", t.entropy_coef, -1.0, 1.0)?;
         check_range("train.bounds_loss_coef", t.bounds_loss_coef, 0.0, 1000.0)?;
+        if let Some(r) = self.eval.stop_at_success {
+            check_range("eval.stop_at_success", r, 0.0, 1.0)?;
+            if self.eval.every == 0 {
+                return Err(Invalid::new("eval.every", "at least 1 when eval.stop_at_success is set"));
+            }
+        }
         for (i, s) in self.curriculum.iter().enumerate() {
             if let Some(r) = s.advance.success_rate {
                 check_range(&format!("curriculum[{i}].advance.success_rate"), r, 0.0, 1.0)?;

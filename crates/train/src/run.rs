@@ -94,6 +94,19 @@ pub struct EpochReport {
     pub eval: Option<EvalResult>,
 }
 
+/// When the periodic evaluation first reached a success rate: the cost of getting there.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Milestone {
+    /// The success rate that was reached (what the evaluation measured, at least the target).
+    pub success_rate: f32,
+    /// Epoch after which that evaluation ran.
+    pub epoch: usize,
+    /// Environment steps of training by then.
+    pub env_steps: u64,
+    /// Wall-clock seconds by then, the evaluation included.
+    pub wall_s: f64,
+}
+
 /// The run's final record (`summary.json`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Summary {
@@ -123,6 +136,12 @@ pub struct Summary {
     pub best_success_rate: f32,
     /// Epoch of the best evaluation.
     pub best_epoch: usize,
+    /// When a periodic evaluation first reached 90% success (absent: never).
+    pub first_90: Option<Milestone>,
+    /// When a periodic evaluation first reached 95% success (absent: never).
+    pub first_95: Option<Milestone>,
+    /// Whether the run ended early because an evaluation reached `eval.stop_at_success`.
+    pub reached_stop_target: bool,
 }
 
 /// Trainer state saved with each checkpoint.
@@ -138,6 +157,10 @@ struct TrainerState {
     value_norm: RunningMeanStd,
     best_success_rate: f32,
     best_epoch: usize,
+    #[serde(default)]
+    first_90: Option<Milestone>,
+    #[serde(default)]
+    first_95: Option<Milestone>,
 }
 
 /// Options of [`train`].
@@ -382,6 +405,8 @@ pub fn train(
         value_norm: RunningMeanStd::new(1),
         best_success_rate: -1.0,
         best_epoch: 0,
+        first_90: None,
+        first_95: None,
     };
     if opts.resume {
         let saved = read_run_config(out)?;
@@ -425,8 +450,9 @@ pub fn train(
     let mut episodes: Vec<EpisodeStats> = Vec::new();
     let mut last_eval = None;
     let mut interrupted = false;
+    let mut reached_stop_target = false;
 
-    while st.epoch < cfg.train.max_epochs {
+    while st.epoch < cfg.train.max_epochs && !reached_stop_target {
         if opts.stop.load(Ordering::Relaxed) {
             interrupted = true;
             break;
@@ -452,6 +478,18 @@ pub fn train(
         let eval_result = if eval_now {
             let (r, _) = evaluate(&ppo, eval.clone(), cfg.eval.episodes, cfg.eval.envs, eval_seed(cfg.seed), threads)?;
             last_eval = Some(r);
+            let reached = Milestone {
+                success_rate: r.success_rate,
+                epoch: st.epoch,
+                env_steps: st.env_steps,
+                wall_s: wall_before + session.elapsed().as_secs_f64(),
+            };
+            for (target, slot) in [(0.9, &mut st.first_90), (0.95, &mut st.first_95)] {
+                if slot.is_none() && r.success_rate >= target {
+                    *slot = Some(reached);
+                }
+            }
+            reached_stop_target = cfg.eval.stop_at_success.is_some_and(|t| r.success_rate >= t);
             Some(r)
         } else {
             None
@@ -523,8 +561,10 @@ pub fn train(
             env = env_for(st.stage, st.epoch)?;
             ppo.reset_state();
         }
-        let checkpoint_now =
-            st.epoch % 10 == 0 || st.epoch == cfg.train.max_epochs || opts.stop.load(Ordering::Relaxed);
+        let checkpoint_now = st.epoch % 10 == 0
+            || st.epoch == cfg.train.max_epochs
+            || reached_stop_target
+            || opts.stop.load(Ordering::Relaxed);
         if checkpoint_now {
             save_checkpoint(&out.join("checkpoint"), &ppo, &st)?;
         }
@@ -555,6 +595,9 @@ pub fn train(
         eval_scenario: cfg.eval.scenario.clone(),
         best_success_rate: st.best_success_rate.max(0.0),
         best_epoch: st.best_epoch,
+        first_90: st.first_90,
+        first_95: st.first_95,
+        reached_stop_target,
     };
     if !interrupted {
         crate::export::write_policy(out, &out.join("policy.onnx"))?;

@@ -1,28 +1,42 @@
-//! Learning is tested by learning: a short seeded run on an easy configuration must reach a
-//! stated success rate on episodes it did not train on, and the same run with learning
+//! Learning is tested by learning: a short seeded run on an easy configuration trains until its
+//! periodic evaluation reaches a target, within a step budget several times what it needs, and
+//! then must hold a stated success rate on episodes it never saw; the same run with learning
 //! switched off (learning rate 1e-8) must not — so this test fails if learning breaks.
+//!
+//! Training is deterministic for a seed and thread count on one machine, but floating-point
+//! kernels (GEMM blocking chosen from the CPU's caches, SIMD dispatch) differ between CPUs, so
+//! one seed's curve is one sample of the learning curve, not a constant. The thresholds below
+//! were set from seeds 0-7 of this configuration (docs/training.md, "Learning tests"): the run
+//! reached the target after 80-150 epochs (budget: 500), and the final test scored 0.95-0.99
+//! (threshold: 0.85).
 
 use rlnav_train::config::load_run_config;
+use rlnav_train::run::Summary;
 use rlnav_train::{TrainOptions, train};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-/// Trains; returns the final evaluation's success rate and, for `keep`, the run folder.
-fn run(extra: &[&str], name: &str, keep: bool) -> (f32, Option<std::path::PathBuf>) {
+/// Periodic-evaluation success at which training stops.
+const TARGET: f32 = 0.95;
+/// Epoch budget (of 64 x 64 steps): more than three times the slowest of seeds 0-7.
+const BUDGET: usize = 500;
+/// Success the stopped policy must hold on fresh episodes (worst of seeds 0-7: 0.95).
+const HOLDS: f32 = 0.85;
+
+/// Trains; returns the summary and, for `keep`, the run folder.
+fn run(extra: &[&str], name: &str, keep: bool) -> (Summary, Option<std::path::PathBuf>) {
     let mut sets: Vec<String> = [
         "scenario=empty-room",
         "eval.scenario=empty-room",
         "network.hidden=[64, 64]",
         "task.reward.progress=10",
-        "train.num_actors=32",
+        "train.num_actors=64",
         "train.horizon_length=64",
-        "train.minibatch_size=1024",
+        "train.minibatch_size=2048",
         "train.mini_epochs=4",
-        "train.max_epochs=120",
         "train.threads=2",
         "eval.episodes=100",
         "eval.envs=50",
-        "eval.every=0",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -34,12 +48,20 @@ fn run(extra: &[&str], name: &str, keep: bool) -> (f32, Option<std::path::PathBu
     let opts = TrainOptions { out: out.clone(), resume: false, stop: Arc::new(AtomicBool::new(false)) };
     let summary = train(&cfg, &opts, &mut |_| {}).unwrap();
     let e = summary.final_eval.unwrap();
-    eprintln!("{name}: success {:.2} collision {:.2} timeout {:.2}", e.success_rate, e.collision_rate, e.timeout_rate);
+    eprintln!(
+        "{name}: {} epochs, best evaluation {:.2} at epoch {}; final test: success {:.2} collision {:.2} timeout {:.2}",
+        summary.iterations,
+        summary.best_success_rate,
+        summary.best_epoch,
+        e.success_rate,
+        e.collision_rate,
+        e.timeout_rate
+    );
     if keep {
-        (e.success_rate, Some(out))
+        (summary, Some(out))
     } else {
         std::fs::remove_dir_all(out).ok();
-        (e.success_rate, None)
+        (summary, None)
     }
 }
 
@@ -60,15 +82,32 @@ fn exported_success(dir: &std::path::Path) -> f32 {
 
 #[test]
 fn ppo_learns_to_reach_goals() {
-    // Evaluation episodes come from a seed stream the training never drew from.
-    let (learned, dir) = run(&[], "ppo", true);
-    assert!(learned >= 0.8, "trained policy reaches {learned:.2} of unseen goals, expected >= 0.80");
+    let target = format!("eval.stop_at_success={TARGET}");
+    let budget = format!("train.max_epochs={BUDGET}");
+    let (s, dir) = run(&[&target, &budget, "eval.every=10"], "ppo", true);
+    assert!(
+        s.reached_stop_target,
+        "no evaluation reached {TARGET} within {BUDGET} epochs (best {:.2} at epoch {})",
+        s.best_success_rate, s.best_epoch
+    );
+    let m = s.first_95.expect("the milestone of the evaluation that stopped the run");
+    assert_eq!((m.epoch, m.env_steps), (s.iterations, s.env_steps), "{m:?}");
+    // Evaluation episodes come from a seed stream neither training nor the stopping rule drew from.
+    let learned = s.final_eval.unwrap().success_rate;
+    assert!(learned >= HOLDS, "trained policy reaches {learned:.2} of unseen goals, expected >= {HOLDS}");
     // The same policy as an ONNX file, through tract and the contract, still navigates.
     let dir = dir.unwrap();
     let exported = exported_success(&dir);
     std::fs::remove_dir_all(dir).ok();
     eprintln!("exported policy.onnx: success {exported:.2}");
-    assert!(exported >= 0.8, "the exported policy reaches {exported:.2} of unseen goals, expected >= 0.80");
-    let (frozen, _) = run(&["train.learning_rate=1e-8", "train.lr_schedule=constant"], "frozen", false);
-    assert!(frozen < 0.6, "without learning the policy should not succeed: {frozen:.2}");
+    assert!(exported >= HOLDS, "the exported policy reaches {exported:.2} of unseen goals, expected >= {HOLDS}");
+    // Learning switched off: the same configuration, trained as long as the fastest seeds need
+    // to reach the target, stays far from it.
+    let (frozen, _) = run(
+        &["train.learning_rate=1e-8", "train.lr_schedule=constant", "train.max_epochs=80", "eval.every=0"],
+        "frozen",
+        false,
+    );
+    let frozen = frozen.final_eval.unwrap().success_rate;
+    assert!(frozen < 0.5, "without learning the policy should not succeed: {frozen:.2}");
 }

@@ -52,6 +52,35 @@ fn same_seed_same_run() {
 }
 
 #[test]
+fn a_run_stops_once_an_evaluation_reaches_its_target() {
+    let out = tmp("target");
+    let mut cfg = smoke(20);
+    cfg.eval.every = 2;
+    // Any success rate reaches 0: the run must stop after its first evaluation.
+    cfg.eval.stop_at_success = Some(0.0);
+    let s = train(&cfg, &opts(&out, false), &mut |_| {}).unwrap();
+    assert!(s.reached_stop_target && !s.interrupted, "{s:?}");
+    assert_eq!(s.iterations, 2, "stopped after the first evaluation");
+    assert!(s.final_eval.is_some(), "the final test still runs");
+    assert_eq!(metrics(&out).len(), 3, "header + 2 epochs");
+    // A target no evaluation reaches runs the whole budget and records no milestone.
+    let out2 = tmp("target-unreached");
+    cfg.eval.stop_at_success = Some(1.0);
+    cfg.train.max_epochs = 4;
+    let s = train(&cfg, &opts(&out2, false), &mut |_| {}).unwrap();
+    let best = s.best_success_rate;
+    assert!(best < 1.0, "an untrained policy does not reach every goal ({best})");
+    assert!(!s.reached_stop_target && s.iterations == 4 && s.first_95.is_none(), "{s:?}");
+    // Without an evaluation schedule the target cannot be checked: refused.
+    cfg.eval.every = 0;
+    let e = rlnav_sim::config::Validate::validate(&cfg).unwrap_err();
+    assert_eq!(e.key, "eval.every", "{e:?}");
+    for d in [out, out2] {
+        std::fs::remove_dir_all(d).ok();
+    }
+}
+
+#[test]
 fn stop_checkpoint_and_resume() {
     let out = tmp("resume");
     let cfg = smoke(6);
