@@ -130,3 +130,78 @@ fn cyclone_dds_gets_commands_from_the_node() {
 fn cyclone_dds_reads_the_sim_bridge() {
     interop("cyclone-sim", "sim --scenario empty-room --episodes 0", 66);
 }
+
+/// What systemd, `docker stop` and a launch file's shutdown send: the node must leave the robot
+/// commanded to stop (a zero /cmd_vel) before it exits, as it does on Ctrl-C.
+#[test]
+fn sigterm_leaves_the_robot_commanded_to_stop() {
+    use rlnav_ros2::bus::{Bus, Qos, Reach, drain};
+    use rlnav_ros2::msg::*;
+    use std::time::{Duration, Instant};
+    let domain = 66u16;
+    let mut node = Command::new(BIN)
+        .args(["ros2", "node", "--policy", &format!("{ROOT}/{POLICY}"), "--goal", "30", "0", "--localhost"])
+        .env("ROS_DOMAIN_ID", domain.to_string())
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut bus = Bus::new("sigterm_peer", domain, Reach::Localhost).unwrap();
+    let scan_pub = bus.publisher::<LaserScan>("/scan", Qos::SensorData).unwrap();
+    let odom_pub = bus.publisher::<Odometry>("/odom", Qos::Default).unwrap();
+    let cmd_sub = bus.subscription::<Twist>("/cmd_vel", Qos::Default).unwrap();
+    let inc = std::f32::consts::TAU / 360.0;
+    // An open space all around: the policy drives towards the goal 30 m ahead.
+    let scan = LaserScan {
+        header: Header::new(Time::default(), "laser"),
+        angle_min: -std::f32::consts::PI,
+        angle_max: -std::f32::consts::PI + inc * 359.0,
+        angle_increment: inc,
+        scan_time: 0.1,
+        range_min: 0.05,
+        range_max: 8.0,
+        ranges: vec![2.5; 360],
+        ..Default::default()
+    };
+    let odom = Odometry {
+        header: Header::new(Time::default(), "odom"),
+        child_frame_id: "base_link".into(),
+        pose: PoseWithCovariance { pose: Pose::planar(0.0, 0.0, 0.0), ..Default::default() },
+        ..Default::default()
+    };
+    let (mut dropped, mut moving, mut last, mut signalled) = (0u64, 0, None::<Twist>, None::<Instant>);
+    let start = Instant::now();
+    let status = loop {
+        assert!(start.elapsed() < Duration::from_secs(60), "the node did not drive or did not exit");
+        let _ = scan_pub.publish(scan.clone());
+        let _ = odom_pub.publish(odom.clone());
+        for c in drain(&cmd_sub, &mut dropped) {
+            moving += (c.linear.x != 0.0) as usize;
+            last = Some(c);
+        }
+        if signalled.is_none() && moving >= 5 {
+            let pid = node.id().to_string();
+            assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
+            signalled = Some(Instant::now());
+        }
+        if let Some(t) = signalled {
+            // Keep reading for a moment after the exit: the last command may still be in flight.
+            if let Some(status) = node.try_wait().unwrap()
+                && t.elapsed() > Duration::from_millis(500)
+            {
+                std::thread::sleep(Duration::from_millis(300));
+                for c in drain(&cmd_sub, &mut dropped) {
+                    last = Some(c);
+                }
+                break status;
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut node.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert!(status.success(), "the node exits cleanly on SIGTERM: {status:?}\n{stderr}");
+    let last = last.expect("commands received");
+    assert_eq!((last.linear.x, last.angular.z), (0.0, 0.0), "last command after SIGTERM: {last:?}\n{stderr}");
+}

@@ -577,13 +577,22 @@ pub fn run_node(
         // An interrupted wait only means an early look at the readers.
         let _ = poll.poll(&mut events, Some(Duration::from_secs_f64(wait)));
     }
-    // Leave the robot stopped.
+    // Leave the robot stopped. RustDDS sends from its own thread, and ros2-client does not
+    // expose the writer's wait for acknowledgements: returning at once can end the process
+    // before the sample leaves (measured: SIGTERM left the robot driving). So the zero goes out
+    // a few times over 150 ms, which also covers a reader that missed the first one.
     let zero = msg::Twist::default();
-    if let Some(pb) = &twist_pub {
-        let _ = pb.publish(zero);
-    }
-    if let Some(pb) = &stamped_pub {
-        let _ = pb.publish(TwistStamped { header: msg::Header::new(Time::default(), &p.base_frame), twist: zero });
+    for k in 0..4 {
+        if k > 0 {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        if let Some(pb) = &twist_pub {
+            let _ = pb.publish(zero);
+        }
+        if let Some(pb) = &stamped_pub {
+            let stamped = TwistStamped { header: msg::Header::new(Time::default(), &p.base_frame), twist: zero };
+            let _ = pb.publish(stamped);
+        }
     }
     Ok(())
 }
