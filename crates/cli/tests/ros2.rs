@@ -172,8 +172,12 @@ fn sigterm_leaves_the_robot_commanded_to_stop() {
     };
     let (mut dropped, mut moving, mut last, mut signalled) = (0u64, 0, None::<Twist>, None::<Instant>);
     let start = Instant::now();
-    let status = loop {
-        assert!(start.elapsed() < Duration::from_secs(60), "the node did not drive or did not exit");
+    loop {
+        if start.elapsed() > Duration::from_secs(60) {
+            let _ = node.kill();
+            let _ = node.wait();
+            panic!("the node did not drive or did not exit");
+        }
         let _ = scan_pub.publish(scan.clone());
         let _ = odom_pub.publish(odom.clone());
         for c in drain(&cmd_sub, &mut dropped) {
@@ -187,18 +191,17 @@ fn sigterm_leaves_the_robot_commanded_to_stop() {
         }
         if let Some(t) = signalled {
             // Keep reading for a moment after the exit: the last command may still be in flight.
-            if let Some(status) = node.try_wait().unwrap()
-                && t.elapsed() > Duration::from_millis(500)
-            {
+            if node.try_wait().unwrap().is_some() && t.elapsed() > Duration::from_millis(500) {
                 std::thread::sleep(Duration::from_millis(300));
                 for c in drain(&cmd_sub, &mut dropped) {
                     last = Some(c);
                 }
-                break status;
+                break;
             }
         }
         std::thread::sleep(Duration::from_millis(50));
-    };
+    }
+    let status = node.wait().unwrap();
     let mut stderr = String::new();
     std::io::Read::read_to_string(&mut node.stderr.take().unwrap(), &mut stderr).unwrap();
     assert!(status.success(), "the node exits cleanly on SIGTERM: {status:?}\n{stderr}");
