@@ -6,7 +6,8 @@
 //! - [`world`]: a static world (walls and obstacles), footprint collision and clearance;
 //! - [`map`]: occupancy-grid maps in the ROS `map_server` format, cast exactly and fast;
 //! - [`lidar`]: [`LidarSpec`] and the ray caster (a culled hot loop, checked against parry2d);
-//! - [`robot`]: [`RobotSpec`] presets and [`DiffDrive`] kinematics; [`urdf`]: robots from URDF;
+//! - [`robot`]: [`RobotSpec`] presets and [`DiffDrive`] kinematics; [`urdf`]: robots from URDF,
+//!   expanded from xacro by [`xacro`] when they are written in it;
 //! - [`barn`]: the BARN Challenge worlds as scenarios, and the challenge's score;
 //! - [`movers`] and [`people`]: moving obstacles, and pedestrians that avoid each other (ORCA);
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
@@ -46,6 +47,7 @@ pub mod task;
 pub mod urdf;
 pub mod vec_env;
 pub mod world;
+pub mod xacro;
 
 pub use config::ConfigError;
 pub use controller::{Controller, GreedyGoal, LaserScan, RobotObservation, StraightAhead, Twist};

@@ -3,13 +3,15 @@
 //! file carries a Gazebo ray sensor), and the speed limits the wheel joints state.
 //!
 //! Parsing is `urdf-rs`'s; this module reads the kinematic tree. It reports what it found and
-//! every default it had to use, so that a user knows which numbers to check. xacro is out of
-//! scope: expand it first (`xacro model.urdf.xacro > model.urdf`).
+//! every default it had to use, so that a user knows which numbers to check. A description
+//! written in xacro (most robots' are, and TurtleBot3's `.urdf` files use it too) is expanded
+//! first by [`crate::xacro`].
 
 use crate::config::Validate;
 use crate::geometry::{Pose2, convex_ccw};
 use crate::lidar::LidarSpec;
 use crate::robot::{FootprintSpec, RobotSpec};
+use crate::xacro::{PackagePath, XacroError, XacroOptions};
 use glam::{DAffine3, DQuat, DVec3, EulerRot};
 use std::collections::HashMap;
 use std::f64::consts::PI;
@@ -27,12 +29,9 @@ pub enum UrdfError {
         /// What the OS said (in the message, not chained, so that it is said once).
         error: std::io::Error,
     },
-    /// A xacro file.
-    #[error("{file}: this is a xacro file; expand it first (`xacro {file} > model.urdf`), xacro is out of scope")]
-    Xacro {
-        /// The file.
-        file: String,
-    },
+    /// A xacro description that could not be expanded (the message names file and line).
+    #[error(transparent)]
+    Xacro(#[from] XacroError),
     /// Not valid URDF XML.
     #[error("{file}: not a valid URDF: {message}")]
     Parse {
@@ -92,26 +91,66 @@ fn yaw_of(t: &DAffine3) -> f64 {
 /// Link names that mark a lidar, most specific first.
 const LIDAR_NAMES: &[&str] = &["lidar", "laser", "scan", "hokuyo", "rplidar", "lds", "velodyne", "sick"];
 
-/// Reads a URDF file.
+/// Reads a URDF or xacro file. xacro is expanded without arguments, finding packages
+/// through `ROS_PACKAGE_PATH` and `AMENT_PREFIX_PATH`; [`import_description_file`] takes
+/// arguments and search folders.
 pub fn import_urdf_file(path: &Path) -> Result<UrdfImport, UrdfError> {
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|error| UrdfError::Io { file: file.clone(), error })?;
-    import_urdf(&file, &text)
+    let options = XacroOptions { packages: PackagePath::default().with_environment(), ..XacroOptions::default() };
+    import_description_file(path, &options)
 }
 
-/// Reads URDF text (`file` names it in messages).
+/// Reads a URDF or xacro file, expanding xacro with `options` (arguments, package search path).
+pub fn import_description_file(path: &Path, options: &XacroOptions) -> Result<UrdfImport, UrdfError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|error| UrdfError::Io { file: file.clone(), error })?;
+    import_description(&file, &text, options)
+}
+
+/// Reads URDF or xacro text (`file` names it in messages; relative xacro includes start from
+/// its folder). xacro is expanded without arguments and without a package search path.
 pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
-    if file.ends_with(".xacro") || text.contains("xmlns:xacro") || text.contains("<xacro:") {
-        return Err(UrdfError::Xacro { file: file.to_string() });
+    import_description(file, text, &XacroOptions::default())
+}
+
+/// Reads URDF or xacro text, expanding xacro with `options`.
+pub fn import_description(file: &str, text: &str, options: &XacroOptions) -> Result<UrdfImport, UrdfError> {
+    if !crate::xacro::is_xacro(file, text) {
+        return import_plain(file, text, Vec::new(), Vec::new());
     }
+    let x = crate::xacro::expand_str(file, text, options)?;
+    let found = vec![format!(
+        "xacro expanded ({} file{}{})",
+        x.files.len(),
+        if x.files.len() == 1 { "" } else { "s" },
+        if x.args.is_empty() {
+            String::new()
+        } else {
+            format!(", args {}", x.args.iter().map(|(k, v)| format!("{k}:={v}")).collect::<Vec<_>>().join(" "))
+        }
+    )];
+    let mut defaults = Vec::new();
+    if !x.unused_args.is_empty() {
+        defaults.push(format!(
+            "argument(s) {} given but not used: the description declares no such <xacro:arg>",
+            x.unused_args.join(", ")
+        ));
+    }
+    import_plain(file, &x.xml, found, defaults)
+}
+
+/// Reads plain URDF text; `found` and `defaults` start with what came before (the expansion).
+fn import_plain(
+    file: &str,
+    text: &str,
+    mut found: Vec<String>,
+    mut defaults: Vec<String>,
+) -> Result<UrdfImport, UrdfError> {
     let model =
         urdf_rs::read_from_string(text).map_err(|e| UrdfError::Parse { file: file.into(), message: e.to_string() })?;
     let unusable = |message: String| UrdfError::Unusable { file: file.to_string(), message };
     if model.links.is_empty() {
         return Err(unusable("no <link> elements".into()));
     }
-    let mut found = Vec::new();
-    let mut defaults = Vec::new();
 
     // The tree: each link's pose in the root link's frame.
     let parent_of: HashMap<&str, &urdf_rs::Joint> = model.joints.iter().map(|j| (j.child.link.as_str(), j)).collect();
@@ -279,11 +318,23 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
             defaults.push(format!("lidar mount [0, 0, 0]: no link named like a lidar ({})", LIDAR_NAMES.join(", ")))
         }
     }
-    match gazebo_ray_sensor(text) {
+    let sensors = gazebo_ray_sensors(text);
+    // The lidar link's sensor; a single ray sensor anywhere is taken as the lidar's too.
+    let sensor = match lidar_link {
+        Some(l) => sensors.iter().find(|s| s.reference.as_deref() == Some(l.name.as_str())),
+        None => None,
+    }
+    .or(if sensors.len() == 1 { sensors.first() } else { None });
+    match sensor {
         Some(s) => {
             found.push(format!(
-                "Gazebo ray sensor: {} beams over [{:.4}, {:.4}] rad, {}-{} m",
-                s.beams, s.angle_min, s.angle_max, s.range_min, s.range_max
+                "Gazebo ray sensor{}: {} beams over [{:.4}, {:.4}] rad, {}-{} m",
+                s.reference.as_ref().map(|r| format!(" on `{r}`")).unwrap_or_default(),
+                s.beams,
+                s.angle_min,
+                s.angle_max,
+                s.range_min,
+                s.range_max
             ));
             lidar.beams = s.beams;
             lidar.angle_min = s.angle_min;
@@ -292,8 +343,19 @@ pub fn import_urdf(file: &str, text: &str) -> Result<UrdfImport, UrdfError> {
             lidar.range_max = s.range_max;
         }
         None => defaults.push(format!(
-            "lidar of {} beams over 360°, {}-{} m: no Gazebo <sensor type=\"ray\"> in the file",
-            lidar.beams, lidar.range_min, lidar.range_max
+            "lidar of {} beams over 360°, {}-{} m: {}",
+            lidar.beams,
+            lidar.range_min,
+            lidar.range_max,
+            if sensors.is_empty() {
+                "no Gazebo <sensor type=\"ray\"> in the file".to_string()
+            } else {
+                format!(
+                    "none of the {} Gazebo ray sensors is on the lidar link (they are on {})",
+                    sensors.len(),
+                    sensors.iter().map(|s| s.reference.as_deref().unwrap_or("no link")).collect::<Vec<_>>().join(", ")
+                )
+            }
         )),
     }
 
@@ -381,9 +443,10 @@ fn footprint_from(points: &[[f64; 2]]) -> FootprintSpec {
     }
 }
 
-/// A Gazebo ray sensor's scan geometry.
+/// A Gazebo ray sensor's scan geometry, and the link its `<gazebo reference>` names.
 #[derive(Debug, PartialEq)]
 struct RaySensor {
+    reference: Option<String>,
     beams: usize,
     angle_min: f32,
     angle_max: f32,
@@ -391,37 +454,64 @@ struct RaySensor {
     range_max: f32,
 }
 
-/// Finds the first `<sensor type="ray|gpu_ray|lidar|gpu_lidar">` in `<gazebo>` blocks (which
-/// urdf-rs skips) and reads `scan/horizontal/{samples,min_angle,max_angle}` and
-/// `range/{min,max}`.
-fn gazebo_ray_sensor(text: &str) -> Option<RaySensor> {
+/// Every complete `<sensor type="ray|gpu_ray|lidar|gpu_lidar">` in `<gazebo>` blocks (which
+/// urdf-rs skips), reading `scan/horizontal/{samples,min_angle,max_angle}` and `range/{min,max}`.
+fn gazebo_ray_sensors(text: &str) -> Vec<RaySensor> {
     use quick_xml::events::Event;
     let mut reader = quick_xml::Reader::from_str(text);
     let mut path: Vec<String> = Vec::new();
-    let mut in_sensor = false;
-    let mut values: HashMap<String, f32> = HashMap::new();
-    loop {
-        match reader.read_event().ok()? {
+    // The `reference` of each open `<gazebo>`, innermost last.
+    let mut references: Vec<Option<String>> = Vec::new();
+    let mut values: Option<HashMap<String, f32>> = None;
+    let mut out = Vec::new();
+    let attr = |e: &quick_xml::events::BytesStart, name: &[u8]| {
+        e.attributes()
+            .flatten()
+            .find(|a| a.key.local_name().as_ref() == name)
+            .map(|a| String::from_utf8_lossy(&a.value).into_owned())
+    };
+    // A malformed file simply ends the search (urdf-rs has already read it).
+    while let Ok(event) = reader.read_event() {
+        match event {
             Event::Start(e) => {
                 let name = String::from_utf8_lossy(e.local_name().as_ref()).into_owned();
-                if name == "sensor" {
-                    let ty = e
-                        .attributes()
-                        .flatten()
-                        .find(|a| a.key.local_name().as_ref() == b"type")
-                        .map(|a| String::from_utf8_lossy(&a.value).into_owned());
-                    in_sensor = matches!(ty.as_deref(), Some("ray" | "gpu_ray" | "lidar" | "gpu_lidar"));
+                if name == "gazebo" {
+                    references.push(attr(&e, b"reference"));
+                } else if name == "sensor"
+                    && matches!(attr(&e, b"type").as_deref(), Some("ray" | "gpu_ray" | "lidar" | "gpu_lidar"))
+                {
+                    values = Some(HashMap::new());
                 }
                 path.push(name);
             }
-            // The guard pops the closed element whether or not it ends the sensor.
-            Event::End(_) if path.pop().as_deref() == Some("sensor") && in_sensor => break,
-            Event::Text(t) if in_sensor => {
+            Event::End(_) => match path.pop().as_deref() {
+                Some("gazebo") => {
+                    references.pop();
+                }
+                Some("sensor") => {
+                    if let Some(v) = values.take() {
+                        let get = |k: &str| v.get(k).copied();
+                        let sensor = (|| {
+                            Some(RaySensor {
+                                reference: references.last().cloned().flatten(),
+                                beams: get("horizontal/samples")? as usize,
+                                angle_min: get("horizontal/min_angle")?,
+                                angle_max: get("horizontal/max_angle")?,
+                                range_min: get("range/min")?,
+                                range_max: get("range/max")?,
+                            })
+                        })();
+                        out.extend(sensor);
+                    }
+                }
+                _ => {}
+            },
+            Event::Text(t) => {
                 let n = path.len();
-                if n >= 2 {
+                if let (Some(v), true) = (values.as_mut(), n >= 2) {
                     let key = format!("{}/{}", path[n - 2], path[n - 1]);
-                    if let Ok(v) = String::from_utf8_lossy(t.as_ref()).trim().parse::<f32>() {
-                        values.entry(key).or_insert(v);
+                    if let Ok(x) = String::from_utf8_lossy(t.as_ref()).trim().parse::<f32>() {
+                        v.entry(key).or_insert(x);
                     }
                 }
             }
@@ -429,12 +519,5 @@ fn gazebo_ray_sensor(text: &str) -> Option<RaySensor> {
             _ => {}
         }
     }
-    let get = |k: &str| values.get(k).copied();
-    Some(RaySensor {
-        beams: get("horizontal/samples")? as usize,
-        angle_min: get("horizontal/min_angle")?,
-        angle_max: get("horizontal/max_angle")?,
-        range_min: get("range/min")?,
-        range_max: get("range/max")?,
-    })
+    out
 }
