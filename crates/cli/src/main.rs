@@ -286,11 +286,20 @@ enum Ros2Command {
 
 #[derive(Subcommand)]
 enum RobotCommand {
-    /// Make a robot file from a URDF: drive wheels, footprint, lidar mount (and the lidar's
-    /// beams and ranges from a Gazebo ray sensor); prints what it found and what it defaulted.
+    /// Make a robot file from a URDF or xacro description: drive wheels, footprint, lidar
+    /// mount (and the lidar's beams and ranges from a Gazebo ray sensor); prints what it found
+    /// and what it defaulted.
     Import {
-        /// The URDF (xacro must be expanded first).
+        /// The description: URDF, or xacro (`.urdf.xacro`, or a URDF that uses xacro), which
+        /// is expanded first.
         urdf: PathBuf,
+        /// xacro arguments, as `xacro` takes them (e.g. `namespace:=tb3_ gazebo:=ignition`).
+        #[arg(value_name = "NAME:=VALUE", value_parser = xacro_arg)]
+        xacro_args: Vec<(String, String)>,
+        /// A folder holding ROS packages (at any depth), for `$(find PKG)` and `package://PKG`;
+        /// searched before ROS_PACKAGE_PATH and AMENT_PREFIX_PATH. Repeatable.
+        #[arg(long = "package-path", value_name = "DIR")]
+        package_path: Vec<PathBuf>,
         /// Robot YAML to write (default: print it).
         #[arg(short, long)]
         out: Option<PathBuf>,
@@ -399,7 +408,13 @@ fn run(cli: Cli) -> Result<()> {
             println!("{}", serde_json::to_string(&r)?);
             Ok(())
         }
-        Command::Robot { command: RobotCommand::Import { urdf, out, name } } => robot_import(&urdf, out, name),
+        Command::Robot { command: RobotCommand::Import { urdf, xacro_args, package_path, out, name } } => {
+            let options = rlnav_sim::xacro::XacroOptions {
+                args: xacro_args,
+                packages: rlnav_sim::xacro::PackagePath::new(package_path).with_environment(),
+            };
+            robot_import(&urdf, &options, out, name)
+        }
         Command::Ros2 { command } => ros2(command),
         Command::Render { env, out, episode, controller, seed, size, beam_stride, speedup } => {
             render(&env, &out, episode, &controller, seed, size, beam_stride, speedup)
@@ -623,8 +638,18 @@ fn train(
     Ok(())
 }
 
-fn robot_import(urdf: &std::path::Path, out: Option<PathBuf>, name: Option<String>) -> Result<()> {
-    let mut imp = rlnav_sim::urdf::import_urdf_file(urdf)?;
+/// Reads `NAME:=VALUE`.
+fn xacro_arg(s: &str) -> Result<(String, String), String> {
+    rlnav_sim::xacro::parse_arg(s).ok_or_else(|| format!("`{s}` is not a xacro argument NAME:=VALUE"))
+}
+
+fn robot_import(
+    urdf: &std::path::Path,
+    options: &rlnav_sim::xacro::XacroOptions,
+    out: Option<PathBuf>,
+    name: Option<String>,
+) -> Result<()> {
+    let mut imp = rlnav_sim::urdf::import_description_file(urdf, options)?;
     if let Some(n) = name {
         imp.robot.name = n;
     }

@@ -131,6 +131,34 @@ fn robot_import_writes_a_robot_that_runs() {
 }
 
 #[test]
+fn robot_import_expands_xacro_with_a_package_path_and_arguments() {
+    let tb4 = concat!(env!("CARGO_MANIFEST_DIR"), "/../sim/tests/urdf/turtlebot4");
+    let file = format!("{tb4}/turtlebot4_description/urdf/lite/turtlebot4.urdf.xacro");
+    let import = |args: &[&str]| {
+        // The tests must not see a ROS installation's packages.
+        Command::new(env!("CARGO_BIN_EXE_rlnav"))
+            .args(["robot", "import", &file])
+            .args(args)
+            .env_remove("ROS_PACKAGE_PATH")
+            .env_remove("AMENT_PREFIX_PATH")
+            .output()
+            .expect("rlnav runs")
+    };
+    let out = import(&["--package-path", tb4, "gazebo:=ignition", "--name", "tb4lite"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("found: xacro expanded (") && err.contains("gazebo:=ignition"), "{err}");
+    let yaml = String::from_utf8_lossy(&out.stdout);
+    assert!(yaml.contains("name: tb4lite") && yaml.contains("wheel_separation: 0.233"), "{yaml}");
+    let out = import(&[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("package `irobot_create_description` not found"), "{err}");
+    let out = import(&["--package-path", tb4, "gazebo=ignition"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("not a xacro argument NAME:=VALUE"), "{err}");
+}
+
+#[test]
 fn policies_inspect_and_evaluate_with_clear_errors() {
     let seeds = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/fixtures/seed-policies");
     let contracts = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts");
