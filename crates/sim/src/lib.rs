@@ -11,6 +11,7 @@
 //! - [`barn`]: the BARN Challenge worlds as scenarios, and the challenge's score;
 //! - [`movers`] and [`people`]: moving obstacles, and pedestrians that avoid each other (ORCA);
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
+//!   [`placement`]: start/goal candidates listed once per fixed map world;
 //! - [`task`]: the navigation task (observation layout, action scaling, reward, termination);
 //! - [`vec_env`]: [`VecEnv`], N environments stepped in parallel;
 //! - [`controller`]: the [`Controller`] trait that joins evaluation, benchmark and deployment.
@@ -40,6 +41,7 @@ pub mod lidar;
 pub mod map;
 pub mod movers;
 pub mod people;
+pub mod placement;
 pub mod reachability;
 pub mod robot;
 pub mod scenario;

@@ -19,12 +19,20 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Maps shipped in `scenarios/maps/`: `(name, yaml, image file name, image bytes)`.
-pub const MAP_PRESETS: &[(&str, &str, &str, &[u8])] = &[(
-    "warehouse",
-    include_str!("../../../scenarios/maps/warehouse.yaml"),
-    "warehouse.pgm",
-    include_bytes!("../../../scenarios/maps/warehouse.pgm"),
-)];
+pub const MAP_PRESETS: &[(&str, &str, &str, &[u8])] = &[
+    (
+        "warehouse",
+        include_str!("../../../scenarios/maps/warehouse.yaml"),
+        "warehouse.pgm",
+        include_bytes!("../../../scenarios/maps/warehouse.pgm"),
+    ),
+    (
+        "turtlebot3-world",
+        include_str!("../../../scenarios/maps/turtlebot3-world.yaml"),
+        "turtlebot3-world.pgm",
+        include_bytes!("../../../scenarios/maps/turtlebot3-world.pgm"),
+    ),
+];
 
 /// How image pixels become occupancy, as in `map_server`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -160,12 +168,16 @@ pub struct OccupancyGrid {
     /// Chebyshev distance (in cells) from each cell to the nearest blocked cell (0 for a
     /// blocked cell; large when there is none).
     cheb: Vec<u32>,
+    /// The same two tables for "not known free" (occupied or unknown), kept only when unknown
+    /// cells are open space (otherwise they equal `blocked` and `cheb`): starts and goals keep
+    /// their clearance from unknown space whatever the robot may drive through.
+    not_free: Option<(Vec<bool>, Vec<u32>)>,
     /// `origin.yaw`'s sine and cosine (the cast is hot; `sin_cos` per ray cost a fifth of it).
     rot: (f32, f32),
 }
 
 impl OccupancyGrid {
-    /// Loads a map: a shipped name (`warehouse`) or a YAML file path.
+    /// Loads a map: a shipped name (`warehouse`, `turtlebot3-world`) or a YAML file path.
     pub fn load(name_or_path: &str, unknown: UnknownCells) -> Result<Self, ConfigError> {
         if let Some((name, yaml, image_name, bytes)) = MAP_PRESETS.iter().find(|m| m.0 == name_or_path) {
             let file = format!("<embedded map {name}>");
@@ -273,8 +285,13 @@ impl OccupancyGrid {
             .map(|c| *c == Cell::Occupied || (*c == Cell::Unknown && unknown == UnknownCells::Occupied))
             .collect();
         let cheb = chebyshev_transform(&blocked, width, height);
+        let not_free = (unknown == UnknownCells::Free && cells.contains(&Cell::Unknown)).then(|| {
+            let not_free: Vec<bool> = cells.iter().map(|c| *c != Cell::Free).collect();
+            let cheb = chebyshev_transform(&not_free, width, height);
+            (not_free, cheb)
+        });
         let rot = origin.yaw.sin_cos();
-        Self { source: source.to_string(), width, height, resolution, origin, cells, blocked, cheb, rot }
+        Self { source: source.to_string(), width, height, resolution, origin, cells, blocked, cheb, not_free, rot }
     }
 
     /// `(width, height)` in cells.
@@ -320,6 +337,12 @@ impl OccupancyGrid {
         self.bounds_of(|c| c == Cell::Free)
     }
 
+    /// World-frame rectangle around the known cells (free or occupied): the part of the map
+    /// worth showing. A `map_saver` map is mostly unknown around a small mapped area.
+    pub fn known_bounds(&self) -> Rect {
+        self.bounds_of(|c| c != Cell::Unknown)
+    }
+
     /// World-frame rectangle around the whole grid.
     pub fn bounds(&self) -> Rect {
         self.bounds_of(|_| true)
@@ -359,14 +382,19 @@ impl OccupancyGrid {
 
     /// Calls `f(ix, iy)` for every blocked cell whose square comes within `reach` cells of
     /// grid point `g`; stops early when `f` returns true and reports whether it did.
-    fn any_blocked_near(&self, g: Vec2, reach: f32, mut f: impl FnMut(usize, usize) -> bool) -> bool {
+    fn any_blocked_near(&self, g: Vec2, reach: f32, f: impl FnMut(usize, usize) -> bool) -> bool {
+        self.any_marked_near(&self.blocked, g, reach, f)
+    }
+
+    /// [`Self::any_blocked_near`] over any cell mask (`blocked` or `not_free`).
+    fn any_marked_near(&self, marked: &[bool], g: Vec2, reach: f32, mut f: impl FnMut(usize, usize) -> bool) -> bool {
         let x0 = (g.x - reach).floor().max(0.0) as usize;
         let y0 = (g.y - reach).floor().max(0.0) as usize;
         let x1 = ((g.x + reach).floor() + 1.0).clamp(0.0, self.width as f32) as usize;
         let y1 = ((g.y + reach).floor() + 1.0).clamp(0.0, self.height as f32) as usize;
         for iy in y0..y1 {
             for ix in x0..x1 {
-                if self.blocked[iy * self.width + ix] && Self::cell_distance(g, ix, iy) <= reach && f(ix, iy) {
+                if marked[iy * self.width + ix] && Self::cell_distance(g, ix, iy) <= reach && f(ix, iy) {
                     return true;
                 }
             }
@@ -401,18 +429,35 @@ impl OccupancyGrid {
 
     /// Whether every blocked cell is at least `min` metres from `p`.
     pub fn is_clear(&self, p: Vec2, min: f32) -> bool {
+        self.is_clear_of(&self.blocked, &self.cheb, p, min)
+    }
+
+    /// Whether every cell that is not known free (occupied, or unknown even where the
+    /// scenario lets the robot drive through unknown space) is at least `min` metres from
+    /// `p`: where a start or a goal may be.
+    pub fn is_known_clear(&self, p: Vec2, min: f32) -> bool {
+        match &self.not_free {
+            Some((not_free, cheb)) => self.is_clear_of(not_free, cheb, p, min),
+            None => self.is_clear(p, min),
+        }
+    }
+
+    /// Whether every cell marked in `marked` (with its Chebyshev table `cheb`) is at least
+    /// `min` metres from `p`.
+    fn is_clear_of(&self, marked: &[bool], cheb: &[u32], p: Vec2, min: f32) -> bool {
         let reach = min / self.resolution;
         if let Some((ix, iy)) = self.cell_of(p) {
-            if self.is_blocked(ix, iy) {
+            let i = iy * self.width + ix;
+            if marked[i] {
                 return false;
             }
-            if self.free_radius(ix, iy) >= reach {
+            if cheb[i].saturating_sub(1) as f32 >= reach {
                 return true;
             }
         }
         let g = self.origin.to_local(p) / self.resolution;
         // Strictly closer than `min` is a violation.
-        !self.any_blocked_near(g, reach, |ix, iy| Self::cell_distance(g, ix, iy) < reach)
+        !self.any_marked_near(marked, g, reach, |ix, iy| Self::cell_distance(g, ix, iy) < reach)
     }
 
     /// Whether the footprint at `pose` touches or overlaps a blocked cell.

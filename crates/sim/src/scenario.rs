@@ -7,6 +7,7 @@ use crate::geometry::{Obstacle, ObstacleSpec, Pose2, Rect, Vec2};
 use crate::map::{MAP_PRESETS, MapRef, OccupancyGrid};
 use crate::movers::{Mover, MoverShape, MoverSpec, PathMode};
 use crate::people::{PeopleGenSpec, Person, PersonSpec};
+use crate::placement::{Candidate, CellPlacement, NoPair};
 use crate::reachability::ReachabilityGrid;
 use crate::world::World;
 use rand::RngExt;
@@ -24,6 +25,7 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("random-dynamic", include_str!("../../../scenarios/random-dynamic.yaml")),
     ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
     ("warehouse", include_str!("../../../scenarios/warehouse.yaml")),
+    ("turtlebot3-world", include_str!("../../../scenarios/turtlebot3-world.yaml")),
     ("people-room", include_str!("../../../scenarios/people-room.yaml")),
     ("paper-static-1", include_str!("../../../scenarios/paper-static-1.yaml")),
     ("paper-static-2", include_str!("../../../scenarios/paper-static-2.yaml")),
@@ -86,6 +88,22 @@ pub enum Placement {
     Points(Vec<[f32; 2]>),
     /// One of these poses `[[x, y, yaw], ...]`.
     Poses(Vec<Pose2>),
+}
+
+impl Placement {
+    /// Whether this placement draws from an area (`free` or `region`) rather than a list.
+    fn is_area(&self) -> bool {
+        matches!(self, Placement::Free | Placement::Region { .. })
+    }
+
+    /// Whether an area placement may put something at `p` (list placements never do).
+    fn admits(&self, p: Vec2) -> bool {
+        match self {
+            Placement::Free => true,
+            Placement::Region { min, max } => p.x >= min[0] && p.x <= max[0] && p.y >= min[1] && p.y <= max[1],
+            Placement::Points(_) | Placement::Poses(_) => false,
+        }
+    }
 }
 
 /// Shapes the generator may place.
@@ -371,6 +389,10 @@ pub struct Scenario {
     grid: Option<Arc<OccupancyGrid>>,
     /// World and reachability of a scenario without a generator (built once).
     fixed_world: Option<(Arc<World>, Arc<ReachabilityGrid>)>,
+    /// Start and goal candidates listed once, for a fixed world on a map with `free` or
+    /// `region` placement (a real map is mostly unknown space and walls: drawing points over
+    /// its bounds and keeping the good ones misses too often).
+    cells: Option<Arc<CellPlacement>>,
     clearance: f32,
     start_clearance: f32,
 }
@@ -434,22 +456,28 @@ impl Scenario {
             fixed,
             grid,
             fixed_world: None,
+            cells: None,
             clearance,
             start_clearance: clearance + start_extra.max(0.0),
+        };
+        // Fail at load time, with the file named, rather than at the first reset.
+        let no_pair = |reason: String| ConfigError::Invalid {
+            file: file.clone(),
+            key: "start/goal".into(),
+            expected: format!("placements that admit a reachable start and goal: {reason}"),
         };
         if s.spec.procedural.is_none() {
             let world = s.build_world(s.fixed.clone());
             let grid = ReachabilityGrid::new(&world, area, clearance, GRID_RESOLUTION);
+            if world.grid().is_some() && [&s.spec.start, &s.spec.goal].iter().all(|p| p.is_area()) {
+                let cells = s.cell_placement(&world, &grid).map_err(|e| no_pair(e.to_string()))?;
+                s.cells = Some(Arc::new(cells));
+            }
             s.fixed_world = Some((Arc::new(world), Arc::new(grid)));
         }
-        // Fail at load time, with the file named, rather than at the first reset.
         let mut rng = rand_pcg::Pcg64Mcg::new(0x5eed);
         for _ in 0..3 {
-            s.sample(&mut rng).map_err(|e| ConfigError::Invalid {
-                file: file.clone(),
-                key: "start/goal".into(),
-                expected: format!("placements that admit a reachable start and goal: {}", e.reason),
-            })?;
+            s.sample(&mut rng).map_err(|e| no_pair(e.reason))?;
         }
         Ok(s)
     }
@@ -480,6 +508,25 @@ impl Scenario {
     /// Whether a start or goal may be placed at `p`: on a map, only known-free cells.
     fn placeable(&self, world: &World, p: Vec2) -> bool {
         world.grid().is_none_or(|g| g.is_known_free(p))
+    }
+
+    /// Lists the start and goal candidates of a fixed world with a map: the reachability
+    /// grid's cell centres in known-free map cells, inside the placement's region, with the
+    /// start's or the goal's clearance from walls, obstacles and unknown space, and (when a
+    /// path is required) in a connected region of the inflated free space.
+    fn cell_placement(&self, world: &World, reach: &ReachabilityGrid) -> Result<CellPlacement, NoPair> {
+        let clear = |p: Vec2, min: f32| world.is_clear(p, min) && world.grid().is_none_or(|g| g.is_known_clear(p, min));
+        let candidates = reach.cells().filter_map(|(p, label)| {
+            if (self.spec.require_path && label == 0) || !self.placeable(world, p) {
+                return None;
+            }
+            let start = self.spec.start.admits(p) && clear(p, self.start_clearance);
+            let goal = self.spec.goal.admits(p) && (start || clear(p, self.clearance));
+            // Without a path requirement every place is one region.
+            let region = if self.spec.require_path { label } else { 1 };
+            (start || goal).then_some(Candidate { position: p, region, start, goal })
+        });
+        CellPlacement::new(candidates, self.spec.start_goal_distance, [self.start_clearance, self.clearance])
     }
 
     /// Moves a goal by `velocity * dt`, reflecting off the placement area's edges (less the
@@ -528,7 +575,14 @@ impl Scenario {
                     (Arc::new(w), Arc::new(g))
                 }
             };
-            match self.place(&world, &grid, rng) {
+            let placed = match &self.cells {
+                Some(cells) => {
+                    let (start, goal) = cells.sample(rng);
+                    Ok((Pose2::new(start.x, start.y, rng.random_range(-PI..PI)), goal))
+                }
+                None => self.place(&world, &grid, rng),
+            };
+            match placed {
                 Ok((start, goal)) => {
                     let movers = self.draw_movers(start.position(), goal, rng);
                     let people = self.draw_people(&world, start.position(), goal, rng);

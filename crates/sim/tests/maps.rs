@@ -301,3 +301,183 @@ fn bad_maps_are_clear_errors() {
     let e = Scenario::new(spec, 0.2, 0.0).unwrap_err().to_string();
     assert!(e.contains("nothere.yaml"), "{e}");
 }
+
+/// The TurtleBot3 world as map_saver wrote it: 384 x 384 cells at 0.05 m, known only in a
+/// 5.65 x 5.2 m patch (free 5.4% of the cells, occupied 0.5%).
+#[test]
+fn turtlebot3_world_is_a_real_map_saver_map() {
+    let g = OccupancyGrid::load("turtlebot3-world", UnknownCells::Occupied).unwrap();
+    assert_eq!((g.size(), g.resolution()), ((384, 384), 0.05));
+    let count = |want: Cell| (0..384 * 384).filter(|i| g.cell(i % 384, i / 384) == want).count();
+    assert_eq!((count(Cell::Free), count(Cell::Occupied)), (7939, 795));
+    let near = |a: Vec2, b: Vec2| (a - b).abs().max_element() < 1e-4;
+    let known = g.known_bounds();
+    assert!(near(known.min, Vec2::new(-2.95, -2.6)) && near(known.max, Vec2::new(2.7, 2.6)), "{known:?}");
+    let whole = g.bounds();
+    assert!(near(whole.min, Vec2::splat(-10.0)) && near(whole.max, Vec2::splat(9.2)), "{whole:?}");
+}
+
+/// Cells (of `g`) whose centres keep `radius` from every blocked cell, labelled into
+/// 4-connected components: an independent reference for "start and goal are connected".
+fn components(g: &OccupancyGrid, radius: f32) -> Vec<u32> {
+    let (w, h) = g.size();
+    let r = g.resolution();
+    let centre = |ix: usize, iy: usize| g.origin().to_parent(Vec2::new((ix as f32 + 0.5) * r, (iy as f32 + 0.5) * r));
+    let open: Vec<bool> =
+        (0..w * h).map(|i| !g.is_blocked(i % w, i / w) && g.clearance(centre(i % w, i / w)) >= radius).collect();
+    let mut label = vec![0u32; w * h];
+    let mut next = 0;
+    for seed in 0..w * h {
+        if !open[seed] || label[seed] != 0 {
+            continue;
+        }
+        next += 1;
+        label[seed] = next;
+        let mut stack = vec![seed];
+        while let Some(c) = stack.pop() {
+            let (x, y) = (c % w, c / w);
+            let around =
+                [(x > 0, c.wrapping_sub(1)), (x + 1 < w, c + 1), (y > 0, c.wrapping_sub(w)), (y + 1 < h, c + w)];
+            for (inside, n) in around {
+                if inside && open[n] && label[n] == 0 {
+                    label[n] = next;
+                    stack.push(n);
+                }
+            }
+        }
+    }
+    label
+}
+
+/// The user's report: on the real TurtleBot3 map, `free` starts and goals 1-3 m or 0.5-2 m
+/// apart could not be placed (3.6% of 1-3 m draws failed over the map's free bounds, and
+/// every draw over the whole map's square). Over many seeds every start and goal is on a
+/// known-free cell, keeps the clearance, and is connected to the other for a disc of that
+/// clearance.
+#[test]
+fn placement_on_the_turtlebot3_map_succeeds_for_short_distances() {
+    use rlnav_sim::RobotSpec;
+    use rlnav_sim::scenario::ArenaSpec;
+    use rlnav_sim::task::{EnvSetup, TaskConfig};
+    // Over the known part, then over the whole 19.2 m square (an arena without walls).
+    let whole = ArenaSpec { size: [19.2, 19.2], center: [-0.4, -0.4], walls: false };
+    for (range, arena) in [([1.0, 3.0], None), ([0.5, 2.0], None), ([1.0, 3.0], Some(whole))] {
+        let mut spec = ScenarioSpec::load("turtlebot3-world").unwrap();
+        spec.start_goal_distance = range;
+        spec.arena = arena;
+        let robot = RobotSpec::load(&spec.robot).unwrap();
+        let radius = robot.footprint().radius();
+        let setup = EnvSetup::new(spec, robot, TaskConfig::default()).unwrap();
+        let s = &setup.scenario;
+        assert!(s.clearance() >= radius && s.start_clearance() > s.clearance());
+        let g = s.grid().unwrap().clone();
+        let label = components(&g, s.clearance());
+        let label_at = |p: Vec2| {
+            let (x, y) = g.cell_of(p).unwrap();
+            label[y * g.size().0 + x]
+        };
+        let mut starts = std::collections::HashSet::new();
+        for seed in 0..300 {
+            let e = s.sample(&mut rand_pcg::Pcg64Mcg::seed_from_u64(seed)).unwrap();
+            let (start, goal) = (e.start.position(), e.goal);
+            let d = (goal - start).length();
+            assert!(d >= range[0] && d <= range[1], "seed {seed}: {d} m apart");
+            for (p, need) in [(start, s.start_clearance()), (goal, s.clearance())] {
+                assert!(g.is_known_free(p), "seed {seed}: {p:?} is not known free");
+                assert!(e.world.clearance(p) >= need - 1e-5, "seed {seed}: {p:?} clearance {}", e.world.clearance(p));
+            }
+            assert!(label_at(start) != 0 && label_at(start) == label_at(goal), "seed {seed}: {start:?} -> {goal:?}");
+            starts.insert((start.x.to_bits(), start.y.to_bits()));
+        }
+        assert!(starts.len() > 150, "starts spread over the arena: {} distinct", starts.len());
+        // Deterministic for a seed.
+        let draw = |seed| {
+            let e = s.sample(&mut rand_pcg::Pcg64Mcg::seed_from_u64(seed)).unwrap();
+            (e.start, e.goal)
+        };
+        assert_eq!(draw(11), draw(11));
+    }
+}
+
+/// Asking for more than the map holds is one clear error, naming the scenario and the range.
+#[test]
+fn impossible_distances_on_a_real_map_are_a_clear_error() {
+    let mut spec = ScenarioSpec::load("turtlebot3-world").unwrap();
+    spec.start_goal_distance = [30.0, 40.0];
+    let e = Scenario::new(spec, 0.25, 0.2).unwrap_err().to_string();
+    assert!(e.contains("<scenario turtlebot3-world>") && e.contains("start/goal"), "{e}");
+    assert!(e.contains("no goal reachable from any start between 30 and 40 m away"), "{e}");
+}
+
+/// Two rooms in a mostly unknown map, joined by a door: placement follows the door.
+#[test]
+fn map_placement_keeps_start_and_goal_connected() {
+    let dir = tmpdir("rooms");
+    // 200 x 100 cells at 0.05 m (10 x 5 m), unknown except two 2 x 2 m rooms side by side at
+    // the centre, split by a wall at column 100 with a door of `door` cells; the west wall
+    // missing when `open_west` (the map's free space runs into unknown space).
+    let rooms = |door: usize, open_west: bool| {
+        pgm(200, 100, move |x, y| {
+            let inside = (60..140).contains(&x) && (30..70).contains(&y);
+            let border = (x == 60 && !open_west) || x == 139 || y == 30 || y == 69;
+            let wall = x == 100 && !(50 - door / 2..50 + door.div_ceil(2)).contains(&y);
+            match (inside, border || wall) {
+                (false, _) => 205,
+                (true, true) => 0,
+                (true, false) => 254,
+            }
+        })
+    };
+    std::fs::write(dir.join("m.yaml"), "image: m.pgm\nresolution: 0.05\norigin: [-5, -2.5, 0]\nfree_thresh: 0.196\n")
+        .unwrap();
+    std::fs::write(dir.join("s.yaml"), "name: rooms\nmap: {file: m.yaml}\nstart_goal_distance: [0.5, 3.5]\n").unwrap();
+    let scenario = |door, open_west| {
+        std::fs::write(dir.join("m.pgm"), rooms(door, open_west)).unwrap();
+        Scenario::new(ScenarioSpec::load(dir.join("s.yaml").to_str().unwrap()).unwrap(), 0.2, 0.0).unwrap()
+    };
+    // A 0.3 m door is too narrow for 0.3 m of clearance: every pair stays in one room.
+    let (mut same, mut across) = (0, 0);
+    for (door, crossing) in [(6, false), (24, true)] {
+        let s = scenario(door, false);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(1);
+        for _ in 0..400 {
+            let e = s.sample(&mut rng).unwrap();
+            if (e.start.x < 0.0) == (e.goal.x < 0.0) {
+                same += 1;
+            } else {
+                assert!(crossing, "{:?} -> {:?} through a 0.3 m door", e.start, e.goal);
+                across += 1;
+            }
+        }
+    }
+    assert!(same > 400 && across > 50, "{same} in one room, {across} across the 1.2 m door");
+    // Unknown space counted as free for driving is still not a place to start or stop:
+    // starts and goals keep their clearance from the unknown space west of the open room.
+    let yaml = "name: rooms\nmap: {file: m.yaml, unknown: free}\nstart_goal_distance: [0.5, 3.5]\n";
+    std::fs::write(dir.join("s.yaml"), yaml).unwrap();
+    let s = scenario(24, true);
+    let g = s.grid().unwrap().clone();
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(2);
+    let mut west = f32::INFINITY;
+    for _ in 0..400 {
+        let e = s.sample(&mut rng).unwrap();
+        for p in [e.start.position(), e.goal] {
+            assert!(g.is_known_free(p) && g.is_known_clear(p, s.clearance()), "{p:?}");
+            west = west.min(p.x);
+        }
+    }
+    // The room's free cells start at x = -2; places keep 0.3 m from the unknown beyond.
+    assert!((-1.71..-1.6).contains(&west), "westmost place {west}");
+}
+
+#[test]
+fn known_clearance_counts_unknown_cells_even_when_they_are_open() {
+    // One row: free, free, unknown, free at 1 m cells.
+    let cells = vec![Cell::Free, Cell::Free, Cell::Unknown, Cell::Free];
+    let open = OccupancyGrid::from_cells("t", 4, 1, 1.0, Pose2::default(), cells.clone(), UnknownCells::Free);
+    let p = Vec2::new(1.5, 0.5);
+    assert!(open.is_clear(p, 1.0), "unknown is open space for driving");
+    assert!(!open.is_known_clear(p, 0.6) && open.is_known_clear(p, 0.5), "but 0.5 m from a cell nobody mapped");
+    let walled = OccupancyGrid::from_cells("t", 4, 1, 1.0, Pose2::default(), cells, UnknownCells::Occupied);
+    assert!(!walled.is_clear(p, 0.6) && !walled.is_known_clear(p, 0.6) && walled.is_known_clear(p, 0.5));
+}
