@@ -367,7 +367,8 @@ impl Scene<'_> {
 }
 
 /// A view around `area` and everything in the world (tight: vertices, not bounding circles),
-/// with a margin.
+/// with a margin. Of a map, only the known cells count: a `map_saver` map is mostly unknown
+/// space around the part that was mapped.
 pub fn view_of(world: &World, area: Rect, margin: f32) -> Rect {
     let (mut min, mut max) = (area.min, area.max);
     let mut grow = |p: Vec2, r: f32| {
@@ -385,7 +386,7 @@ pub fn view_of(world: &World, area: Rect, margin: f32) -> Rect {
         }
     }
     if let Some(g) = world.grid() {
-        let b = g.bounds();
+        let b = g.known_bounds();
         grow(b.min, 0.0);
         grow(b.max, 0.0);
     }

@@ -77,3 +77,31 @@ fn svg_and_gif_of_an_episode() {
         scene.write(&tmp("x.bmp"), &rec.frames, &style, 1, 1.0).unwrap_err().to_string().contains(".png, .svg or .gif")
     );
 }
+
+/// A map_saver map is mostly unknown space: the picture shows the mapped part (its known
+/// cells plus the margin), not the whole 19.2 m square.
+#[test]
+fn a_real_map_is_cropped_to_its_known_part() {
+    let env = NavEnv::new(Arc::new(EnvSetup::from_scenario_name("turtlebot3-world").unwrap()), 1).unwrap();
+    let scene = scene_of(&env);
+    let grid = env.world().grid().unwrap();
+    let known = grid.known_bounds();
+    let (min, max) = (known.min - Vec2::splat(0.3), known.max + Vec2::splat(0.3));
+    assert!((scene.view.min - min).abs().max_element() < 1e-4, "{:?} vs known {known:?}", scene.view);
+    assert!((scene.view.max - max).abs().max_element() < 1e-4, "{:?} vs known {known:?}", scene.view);
+    assert!(scene.view.size().x < 6.5 && grid.bounds().size().x > 19.0);
+    let path = tmp("turtlebot3-world.png");
+    let style = Style { size: 400, beam_stride: 0, trail: false };
+    scene.write(&path, &[Frame::capture(&env, 0.0)], &style, 1, 1.0).unwrap();
+    let img = image::open(&path).unwrap().to_rgb8();
+    // 5.65 x 5.2 m known plus 0.3 m a side: 400 x 371 pixels, about 64 px/m.
+    assert_eq!(img.dimensions(), (400, 371));
+    let grey = img.pixels().filter(|p| p.0 == [205, 205, 205]).count() as f32 / (400.0 * 371.0);
+    let white = img.pixels().filter(|p| p.0 == [255, 255, 255]).count() as f32 / (400.0 * 371.0);
+    // The arena (free, white: 19.8 m² of 36.3) fills over half the picture, unknown (grey)
+    // only the corners and the margin (40%). The whole map would be 94% grey, 5% white.
+    assert!(white > 0.45 && grey < 0.45, "white {white}, grey {grey}");
+    // A wall lands where it is: the arena's south wall fills y = -2.6..-2.5 near x = 0.
+    let (x, y) = pixel(scene.view, 400, Vec2::new(0.02, -2.55));
+    assert_eq!(img.get_pixel(x, y).0, [40, 40, 40], "south wall at pixel ({x}, {y})");
+}

@@ -91,7 +91,11 @@ fn render_writes_pictures_and_refuses_what_it_cannot() {
     let png = dir.join("scene.png");
     let out = rlnav(&["render", "--scenario", "warehouse", "-o", png.to_str().unwrap(), "--size", "300"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(image_size(&png), (300, 234), "the 13 x 10 m map plus 0.3 m margins, 300 px wide");
+    assert_eq!(image_size(&png), (300, 229), "the 12 x 9 m known part of the 13 x 10 m map plus 0.3 m margins");
+    // A map_saver map: the 5.65 x 5.2 m mapped arena of a 19.2 m square, not the square.
+    let out = rlnav(&["render", "--scenario", "turtlebot3-world", "-o", png.to_str().unwrap(), "--size", "400"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(image_size(&png), (400, 371), "6.25 x 5.8 m at 64 px/m");
     let gif = dir.join("run.gif");
     let out =
         rlnav(&["render", "--scenario", "people-room", "--episode", "-o", gif.to_str().unwrap(), "--size", "160"]);
@@ -208,6 +212,43 @@ fn dwa_runs_from_the_command_line() {
     assert!(text.contains("controller dwa") && text.lines().last().unwrap().starts_with("success "), "{text}");
     let out = rlnav(&["latency", "--controller", "dwa", "--cycles", "50"]);
     assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains("\"controller\":\"dwa\""));
+}
+
+/// The user's report: `rlnav bench` on a suite of a real map_saver map (small known area in a
+/// large unknown square, starts and goals 1-3 m apart) runs DWA and a shipped policy.
+#[test]
+fn bench_runs_on_a_real_map() {
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-bench-map-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let suite = dir.join("tb3.yaml");
+    std::fs::write(&suite, "name: tb3\nscenarios: [turtlebot3-world]\n").unwrap();
+    let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
+    let rl = format!("rl:{policy}");
+    let out = rlnav(&[
+        "bench",
+        "--suite",
+        suite.to_str().unwrap(),
+        "--controller",
+        "dwa",
+        "--controller",
+        &rl,
+        "--episodes",
+        "2",
+        "--timing-cycles",
+        "10",
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/report.json")).unwrap()).unwrap();
+    let cells = json["suites"][0]["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 2);
+    for c in cells {
+        assert_eq!(c["scenario"], "turtlebot3-world");
+        assert_eq!(c["episodes"].as_array().unwrap().len(), 2, "{c}");
+    }
+    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
