@@ -49,7 +49,9 @@ fn default_episodes() -> usize {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BarnSuite {
-    /// The BARN data file (`barn_worlds.json`).
+    /// `barn` (the default): the 250 worlds shipped in `assets/barn/` and embedded in the
+    /// binary; or the path of another BARN data file (`barn_worlds.json`).
+    #[serde(default = "shipped_barn")]
     pub file: String,
     /// Every `every`-th world of the file, in index order (default 1: all).
     #[serde(default = "one")]
@@ -58,6 +60,10 @@ pub struct BarnSuite {
 
 fn one() -> usize {
     1
+}
+
+fn shipped_barn() -> String {
+    rlnav_sim::barn::SHIPPED_NAME.to_string()
 }
 
 impl Validate for SuiteSpec {
@@ -155,7 +161,7 @@ fn suite_setups_scored(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<Sco
         setups.push((Arc::new(EnvSetup::new(spec, robot, TaskConfig::default())?), None));
     }
     if let Some(b) = &suite.barn {
-        let set = rlnav_sim::barn::BarnSet::load(std::path::Path::new(&b.file))?;
+        let set = rlnav_sim::barn::BarnSet::load_named(&b.file)?;
         let base = TaskConfig::default();
         let task = TaskConfig {
             goal_tolerance: set.success_radius,
@@ -219,9 +225,16 @@ pub fn run_suite(
         for c in controllers {
             let name = &setup.scenario.spec().name;
             let dir = record.map(|d| d.join(crate::plots::slug(name)).join(crate::plots::slug(c)));
-            let (summary, eps, traces) =
-                evaluate_controller(setup.clone(), || for_setup(c, setup), episodes, seed, threads, dir.as_deref())
-                    .map_err(BenchError::Run)?;
+            let (summary, eps, traces) = evaluate_controller(
+                setup.clone(),
+                || for_setup(c, setup),
+                episodes,
+                seed,
+                threads,
+                dir.as_deref(),
+                &|_| {},
+            )
+            .map_err(BenchError::Run)?;
             cells.push(CellResult {
                 scenario: setup.scenario.spec().name.clone(),
                 controller: c.clone(),

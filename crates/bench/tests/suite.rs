@@ -113,11 +113,26 @@ fn distance_band_holds_finished_episodes_at_their_final_distance() {
 
 #[test]
 fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
-    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/fixtures/barn/barn_worlds.json");
-    let yaml = format!("name: barn-test\nbarn: {{file: {file}, every: 50}}\nepisodes: 1\n");
-    let suite: SuiteSpec = rlnav_sim::config::from_yaml_str("barn-test.yaml", &yaml).unwrap();
+    // The shipped suite works from this crate's folder: its worlds are embedded, not a path.
+    let shipped = SuiteSpec::load("barn").unwrap();
+    assert_eq!(rlnav_bench::suite::suite_setups(&shipped, None).unwrap().len(), 25);
+    // `file` defaults to the embedded worlds; a path reads that file.
+    let yaml = "name: barn-test\nbarn: {every: 50}\nepisodes: 1\n";
+    let suite: SuiteSpec = rlnav_sim::config::from_yaml_str("barn-test.yaml", yaml).unwrap();
     let setups = rlnav_bench::suite::suite_setups(&suite, None).unwrap();
     assert_eq!(setups.len(), 5);
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/barn/barn_worlds.json");
+    let yaml = format!("name: barn-file\nbarn: {{file: {file}, every: 50}}\nepisodes: 1\n");
+    let by_path: SuiteSpec = rlnav_sim::config::from_yaml_str("barn-file.yaml", &yaml).unwrap();
+    let names = |s: &SuiteSpec| {
+        let setups = rlnav_bench::suite::suite_setups(s, None).unwrap();
+        setups.iter().map(|s| s.scenario.spec().name.clone()).collect::<Vec<_>>()
+    };
+    assert_eq!(names(&by_path), names(&suite));
+    let yaml = "name: barn-nowhere\nbarn: {file: nowhere/barn.json}\n";
+    let missing: SuiteSpec = rlnav_sim::config::from_yaml_str("barn-nowhere.yaml", yaml).unwrap();
+    let e = rlnav_bench::suite::suite_setups(&missing, None).unwrap_err().to_string();
+    assert!(e.contains("nowhere/barn.json"), "{e}");
     for s in &setups {
         assert_eq!((s.robot.name.as_str(), s.task.goal_tolerance, s.task.max_steps), ("jackal", 1.0, 1000));
     }
@@ -161,4 +176,50 @@ fn per_cycle_compute_times_every_controller_and_refuses_unknown_ones() {
     let md = rlnav_bench::latency::markdown(&r, "paper-static-1");
     assert_eq!(md.lines().filter(|l| l.starts_with("| greedy") || l.starts_with("| dwa")).count(), 2, "{md}");
     assert!(rlnav_bench::latency::measure_controllers(&["psychic".into()], &setup, 5, 0).is_err());
+}
+
+#[test]
+fn an_evaluation_reports_each_finished_episode_and_its_summary() {
+    use rlnav_bench::evaluate::evaluate_controller;
+    use std::sync::Mutex;
+    let spec = rlnav_sim::ScenarioSpec::load("static-room").unwrap();
+    let robot = rlnav_sim::RobotSpec::load(&spec.robot).unwrap();
+    let setup =
+        std::sync::Arc::new(rlnav_sim::task::EnvSetup::new(spec, robot, rlnav_sim::TaskConfig::default()).unwrap());
+    let heard = Mutex::new(Vec::new());
+    let (summary, episodes, traces) = evaluate_controller(
+        setup.clone(),
+        || rlnav_bench::controllers::for_setup("greedy", &setup),
+        7,
+        3,
+        2,
+        None,
+        &|done| heard.lock().unwrap().push(done),
+    )
+    .unwrap();
+    let mut heard = heard.into_inner().unwrap();
+    heard.sort_unstable();
+    assert_eq!(heard, (1..=7).collect::<Vec<_>>(), "one call per finished episode, counting up");
+    assert_eq!((episodes.len(), traces.len()), (7, 7));
+    // The one summary type: its figures are those of the episodes.
+    // (Debug text: a NaN task time, with no success, is not equal to itself.)
+    assert_eq!(format!("{summary:?}"), format!("{:?}", rlnav_sim::EvalSummary::of(&episodes)));
+    let wins: Vec<f32> = episodes.iter().filter(|e| e.outcome == rlnav_sim::Outcome::Success).map(|e| e.time).collect();
+    assert_eq!(summary.episodes, 7);
+    assert!((summary.success_rate - wins.len() as f32 / 7.0).abs() < 1e-6);
+    let mean_return = episodes.iter().map(|e| e.episode_return).sum::<f32>() / 7.0;
+    assert!((summary.mean_return - mean_return).abs() < 1e-4);
+    // No success: no task time, and JSON carries it as null and reads it back as NaN.
+    let lost = rlnav_sim::EvalSummary::of(
+        &episodes.iter().copied().filter(|e| e.outcome != rlnav_sim::Outcome::Success).collect::<Vec<_>>(),
+    );
+    assert!(lost.mean_task_time.is_nan());
+    let json = serde_json::to_string(&lost).unwrap();
+    assert!(json.contains("\"mean_task_time\":null"), "{json}");
+    let back: rlnav_sim::EvalSummary = serde_json::from_str(&json).unwrap();
+    assert!(back.mean_task_time.is_nan() && back.episodes == lost.episodes);
+    // A summary written before the two types were one (train's `mean_success_time`) still reads.
+    let old = r#"{"episodes":4,"success_rate":0.5,"collision_rate":0.5,"timeout_rate":0.0,"mean_return":3.0,"mean_success_time":7.5}"#;
+    let old: rlnav_sim::EvalSummary = serde_json::from_str(old).unwrap();
+    assert_eq!((old.episodes, old.mean_task_time, old.mean_speed), (4, 7.5, 0.0));
 }

@@ -164,9 +164,9 @@ fn robot_import_expands_xacro_with_a_package_path_and_arguments() {
 
 #[test]
 fn policies_inspect_and_evaluate_with_clear_errors() {
-    let seeds = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/fixtures/seed-policies");
+    let article = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/article");
     let contracts = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts");
-    let model = format!("{seeds}/static_120_new.onnx");
+    let model = format!("{article}/static_120_new.onnx");
     let contract = format!("{contracts}/static_120_new.yaml");
     let out = rlnav(&["inspect", &model, "--contract", &contract]);
     let text = String::from_utf8_lossy(&out.stdout);
@@ -202,6 +202,49 @@ fn policies_inspect_and_evaluate_with_clear_errors() {
     assert!(!out.status.success() && err.contains("does not fit jackal's lidar") && err.contains("unseen"), "{err}");
     let out = rlnav(&["eval", "--policy", &model]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--contract"));
+}
+
+/// A foreign model of the reference article's 133-input layout, evaluated through its side
+/// contract. The model echoes the current goal distance and bearing as (v, ω), so it heads for
+/// the goal: it proves the values sit where contracts/article-mlp-133.yaml says.
+#[test]
+fn a_133_input_model_runs_through_its_side_contract() {
+    use prost::Message;
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-133-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let contract = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts/article-mlp-133.yaml");
+    let c = rlnav_policy::PolicyContract::from_file(std::path::Path::new(contract)).unwrap();
+    // Values 124 and 129: the newest of the five bearings and of the five distances.
+    let proto = rlnav_policy::export::echo_model(133, [129, 124], &c.io).unwrap();
+    let model = dir.join("mlp-133.onnx");
+    std::fs::write(&model, proto.encode_to_vec()).unwrap();
+    let model = model.to_str().unwrap();
+    let out = rlnav(&["inspect", model, "--contract", contract]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("input  obs [batch, 133]"), "{text}");
+    assert!(text.contains("120-124  goal_bearing × 5, oldest first") && text.contains("131  lateral"), "{text}");
+    let out = rlnav(&[
+        "eval",
+        "--policy",
+        model,
+        "--contract",
+        contract,
+        "--scenario",
+        "empty-room",
+        "--episodes",
+        "6",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let ev: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(ev["episodes"].as_array().unwrap().len(), 6);
+    // Steering by the goal bearing reaches goals in an empty room; misplaced values would not.
+    assert!(ev["summary"]["success_rate"].as_f64().unwrap() >= 0.5, "{}", ev["summary"]);
+    // Without the side contract: refused, pointing at --contract.
+    let out = rlnav(&["eval", "--policy", model]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--contract"));
+    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
@@ -313,4 +356,51 @@ fn bench_writes_the_report() {
     }
     let out = rlnav(&["bench", "--suite", "no-such-suite", "--controller", "greedy"]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("unknown suite `no-such-suite`"));
+}
+
+#[test]
+fn barn_worlds_run_from_any_folder() {
+    // An empty folder: nothing of the repository is beside it.
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-barn-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_rlnav")).args(args).current_dir(&dir).output().expect("rlnav runs")
+    };
+    let out = run(&["demo", "--scenario", "barn#world_1", "--robot", "jackal", "--episodes", "1"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("scenario barn-world_1 | robot jackal"));
+    let out = run(&[
+        "bench",
+        "--suite",
+        "barn",
+        "--controller",
+        "greedy",
+        "--episodes",
+        "1",
+        "--timing-cycles",
+        "0",
+        "--out",
+        "report",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let md = std::fs::read_to_string(dir.join("report/report.md")).unwrap();
+    assert_eq!(md.lines().filter(|l| l.starts_with("| barn-world_")).count(), 25, "{md}");
+    assert!(md.contains("BARN score over the worlds"), "{md}");
+    let out = run(&["list"]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("barn#world_N"));
+}
+
+#[test]
+fn help_lists_every_shipped_config_and_suite() {
+    let out = rlnav(&["train", "--help"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    for name in rlnav_train::config::TRAIN_PRESETS.iter().map(|p| p.0) {
+        assert!(text.contains(name), "{name} missing in\n{text}");
+    }
+    let out = rlnav(&["bench", "--help"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    for name in rlnav_bench::suite::SUITE_PRESETS.iter().map(|p| p.0) {
+        assert!(text.contains(name), "{name} missing in\n{text}");
+    }
+    assert!(text.contains("barn"));
 }

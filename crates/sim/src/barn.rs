@@ -3,7 +3,9 @@
 //! The data file (`barn_worlds.json`, converted from the public challenge repository) holds
 //! every world's cylinders, the reference path length and the "optimal time" the challenge's
 //! score uses. Each world becomes a [`ScenarioSpec`] for the `jackal` preset: the fixed start
-//! pose, the fixed goal, the cylinders. A scenario name `FILE.json#world_N` loads one world.
+//! pose, the fixed goal, the cylinders. The 250 worlds of `assets/barn/` are embedded
+//! ([`SHIPPED_BARN`], named `barn`); a scenario name `barn#world_N` loads one of them, and
+//! `FILE.json#world_N` one world of another file in the same format.
 
 use crate::config::{ConfigError, Invalid, Validate};
 use crate::geometry::{ObstacleSpec, Pose2};
@@ -11,6 +13,16 @@ use crate::scenario::{Placement, ScenarioSpec};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
+
+/// The name of the embedded BARN worlds, wherever a BARN data file is asked for.
+pub const SHIPPED_NAME: &str = "barn";
+
+/// The BARN worlds shipped in `assets/barn/barn_worlds.json` (MIT, the BARN Challenge; see the
+/// README and LICENSE there), embedded so that they work from any folder.
+pub const SHIPPED_BARN: &str = include_str!("../../../assets/barn/barn_worlds.json");
+
+/// What errors call the embedded file.
+const SHIPPED_LABEL: &str = "<embedded BARN worlds `barn`>";
 
 #[derive(Deserialize)]
 struct BarnFile {
@@ -78,7 +90,23 @@ impl BarnSet {
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
         let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|error| ConfigError::Io { file: file.clone(), error })?;
-        let data: BarnFile = serde_json::from_str(&text)
+        Self::parse(&file, &text)
+    }
+
+    /// The embedded worlds ([`SHIPPED_BARN`]).
+    pub fn shipped() -> Result<Self, ConfigError> {
+        Self::parse(SHIPPED_LABEL, SHIPPED_BARN)
+    }
+
+    /// The embedded worlds for `barn` ([`SHIPPED_NAME`]), otherwise the file at that path.
+    pub fn load_named(name_or_path: &str) -> Result<Self, ConfigError> {
+        if name_or_path == SHIPPED_NAME { Self::shipped() } else { Self::load(Path::new(name_or_path)) }
+    }
+
+    /// Reads BARN data from `text`; `file` names it in errors.
+    pub fn parse(file: &str, text: &str) -> Result<Self, ConfigError> {
+        let file = file.to_string();
+        let data: BarnFile = serde_json::from_str(text)
             .map_err(|e| ConfigError::Parse { file: file.clone(), message: e.to_string() })?;
         let a = &data.about;
         let invalid = |key: &str, expected: &str| Invalid::new(key, expected).in_file(&file);
@@ -151,10 +179,16 @@ pub fn barn_score(success: bool, time: f32, optimal_time: f32) -> f32 {
     optimal_time / time.clamp(2.0 * optimal_time, 8.0 * optimal_time)
 }
 
-/// Loads `FILE.json#world_N` as a scenario.
+/// Whether a scenario name refers to one BARN world: `barn#world_N` (the embedded worlds) or
+/// a name containing `.json` (`FILE.json#world_N`).
+pub fn is_world_reference(name: &str) -> bool {
+    name.contains(".json") || name.split_once('#').is_some_and(|(set, _)| set == SHIPPED_NAME)
+}
+
+/// Loads `barn#world_N` (the embedded worlds) or `FILE.json#world_N` as a scenario.
 pub fn load_world_spec(reference: &str) -> Result<ScenarioSpec, ConfigError> {
     let (path, world) = reference.split_once('#').unwrap_or((reference, ""));
-    let set = BarnSet::load(Path::new(path))?;
+    let set = BarnSet::load_named(path)?;
     match set.world(world) {
         Some(w) => Ok(w.spec.clone()),
         None => Err(ConfigError::Invalid {

@@ -327,10 +327,10 @@ impl Validate for ScenarioSpec {
 }
 
 impl ScenarioSpec {
-    /// A shipped scenario by name, a YAML file by path, or one BARN world
-    /// (`barn_worlds.json#world_N`).
+    /// A shipped scenario by name, a YAML file by path, or one BARN world (`barn#world_N` for
+    /// the embedded worlds, `FILE.json#world_N` for another file).
     pub fn load(name_or_path: &str) -> Result<Self, ConfigError> {
-        if name_or_path.contains(".json") {
+        if crate::barn::is_world_reference(name_or_path) {
             return crate::barn::load_world_spec(name_or_path);
         }
         let mut spec: Self = preset_or_file("scenario", SCENARIO_PRESETS, name_or_path)?;
