@@ -95,14 +95,24 @@ impl EventWriter {
     }
 }
 
-/// Reads back the scalar events of a file: `(step, tag, value)` (checks every checksum).
-pub fn read_scalars(path: &Path) -> io::Result<Vec<(i64, String, f32)>> {
-    let bytes = std::fs::read(path)?;
+/// One TFRecord of an event file: the decoded event and the record's bytes as written.
+struct Record<'a> {
+    event: Event,
+    bytes: &'a [u8],
+}
+
+/// Splits an event file into records, checking every checksum. A record cut short at the end
+/// of the file (a process killed while writing it) is an error unless `allow_cut_tail`, where
+/// it ends the list.
+fn records<'a>(path: &Path, bytes: &'a [u8], allow_cut_tail: bool) -> io::Result<Vec<Record<'a>>> {
     let bad = |m: &str| io::Error::new(io::ErrorKind::InvalidData, format!("{}: {m}", path.display()));
     let mut out = Vec::new();
     let mut at = 0;
     while at < bytes.len() {
         if at + 12 > bytes.len() {
+            if allow_cut_tail {
+                break;
+            }
             return Err(bad("truncated record header"));
         }
         let len_bytes = &bytes[at..at + 8];
@@ -111,20 +121,87 @@ pub fn read_scalars(path: &Path) -> io::Result<Vec<(i64, String, f32)>> {
         if crc != masked_crc(len_bytes) {
             return Err(bad("bad length checksum"));
         }
-        let data = bytes.get(at + 12..at + 12 + len).ok_or_else(|| bad("truncated record"))?;
-        let crc = bytes.get(at + 12 + len..at + 16 + len).ok_or_else(|| bad("truncated record"))?;
-        if u32::from_le_bytes(crc.try_into().expect("4 bytes")) != masked_crc(data) {
+        let end = at.saturating_add(16).saturating_add(len);
+        if end > bytes.len() {
+            if allow_cut_tail {
+                break;
+            }
+            return Err(bad("truncated record"));
+        }
+        let data = &bytes[at + 12..at + 12 + len];
+        if u32::from_le_bytes(bytes[end - 4..end].try_into().expect("4 bytes")) != masked_crc(data) {
             return Err(bad("bad data checksum"));
         }
-        let e: Event = prost::Message::decode(data).map_err(|e| bad(&e.to_string()))?;
-        for v in e.summary.map(|s| s.value).unwrap_or_default() {
-            if let Some(x) = v.simple_value {
-                out.push((e.step, v.tag, x));
-            }
-        }
-        at += 16 + len;
+        let event: Event = prost::Message::decode(data).map_err(|e| bad(&e.to_string()))?;
+        out.push(Record { event, bytes: &bytes[at..end] });
+        at = end;
     }
     Ok(out)
+}
+
+/// Reads back the scalar events of a file: `(step, tag, value)` (checks every checksum).
+pub fn read_scalars(path: &Path) -> io::Result<Vec<(i64, String, f32)>> {
+    let bytes = std::fs::read(path)?;
+    let mut out = Vec::new();
+    for r in records(path, &bytes, false)? {
+        for v in r.event.summary.map(|s| s.value).unwrap_or_default() {
+            if let Some(x) = v.simple_value {
+                out.push((r.event.step, v.tag, x));
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The event files of `logdir` (TensorBoard reads every file whose name contains
+/// `tfevents`), in name order; none when the folder does not exist.
+pub fn event_files(logdir: &Path) -> io::Result<Vec<PathBuf>> {
+    let entries = match std::fs::read_dir(logdir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(e),
+    };
+    let mut files = Vec::new();
+    for entry in entries {
+        let path = entry?.path();
+        if path.is_file() && path.file_name().is_some_and(|n| n.to_string_lossy().contains("tfevents")) {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
+/// Removes from every event file in `logdir` the events whose step is past `last_step`, and
+/// a record cut short by a killed process; returns how many events went.
+///
+/// A resumed run writes the steps after its checkpoint again, in a new file, and TensorBoard
+/// would show both copies of those steps: for `brain.Event:2` files its reader purges
+/// orphaned steps only at a second `SessionLog.START` event, and other event-file readers
+/// never do. So the old copies are removed from the files themselves.
+/// Each changed file is rewritten whole under a temporary name (without `tfevents`, so that
+/// TensorBoard never reads it half-written) and renamed over the old one; records are kept
+/// byte for byte.
+pub fn drop_events_after(logdir: &Path, last_step: i64) -> io::Result<usize> {
+    let mut dropped = 0;
+    for path in event_files(logdir)? {
+        let bytes = std::fs::read(&path)?;
+        let all = records(&path, &bytes, true)?;
+        let kept: Vec<&Record> = all.iter().filter(|r| r.event.step <= last_step).collect();
+        let kept_len: usize = kept.iter().map(|r| r.bytes.len()).sum();
+        if kept_len == bytes.len() {
+            continue;
+        }
+        dropped += all.len() - kept.len();
+        let tmp = logdir.join(format!(".rlnav-rewrite.{}", std::process::id()));
+        let mut out = BufWriter::new(File::create(&tmp)?);
+        for r in &kept {
+            out.write_all(r.bytes)?;
+        }
+        out.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+        std::fs::rename(&tmp, &path)?;
+    }
+    Ok(dropped)
 }
 
 #[cfg(test)]
@@ -146,6 +223,39 @@ mod tests {
         w.scalars(2, &[("reward", 2.5)]).unwrap();
         let got = read_scalars(w.path()).unwrap();
         assert_eq!(got, vec![(1, "reward".into(), 1.5), (1, "success".into(), 0.25), (2, "reward".into(), 2.5)]);
+        std::fs::remove_dir_all(dir).ok();
+    }
+
+    #[test]
+    fn dropping_events_past_a_step_keeps_the_rest_and_a_cut_tail_goes() {
+        let dir = std::env::temp_dir().join(format!("rlnav-tb-drop-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let mut w = EventWriter::create(&dir).unwrap();
+        for step in 1..=5 {
+            w.scalars(step * 10, &[("reward", step as f32)]).unwrap();
+        }
+        let path = w.path().to_path_buf();
+        drop(w);
+        // A killed writer leaves half a record.
+        let mut f = std::fs::OpenOptions::new().append(true).open(&path).unwrap();
+        f.write_all(&[7, 0, 0, 0, 0, 0]).unwrap();
+        drop(f);
+        assert!(read_scalars(&path).is_err(), "the cut record is seen");
+        assert_eq!(drop_events_after(&dir, 30).unwrap(), 2);
+        let got = read_scalars(&path).unwrap();
+        assert_eq!(got, vec![(10, "reward".into(), 1.0), (20, "reward".into(), 2.0), (30, "reward".into(), 3.0)]);
+        // The version record (step 0) stays first; nothing else to drop the second time.
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(records(&path, &bytes, false).unwrap()[0].event.file_version.as_deref(), Some("brain.Event:2"));
+        assert_eq!(drop_events_after(&dir, 30).unwrap(), 0);
+        assert_eq!(event_files(&dir).unwrap(), vec![path.clone()]);
+        // A corrupt record is an error naming the file, not silently dropped.
+        let mut bytes = std::fs::read(&path).unwrap();
+        let last = bytes.len() - 1;
+        bytes[last] ^= 0xff;
+        std::fs::write(&path, bytes).unwrap();
+        let e = drop_events_after(&dir, 0).unwrap_err().to_string();
+        assert!(e.contains("tfevents") && e.contains("checksum"), "{e}");
         std::fs::remove_dir_all(dir).ok();
     }
 }

@@ -3,6 +3,7 @@
 use rlnav_train::config::load_run_config;
 use rlnav_train::run::{TrainError, load_model, read_run_config};
 use rlnav_train::{RunConfig, TrainOptions, train};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -135,6 +136,105 @@ fn stop_checkpoint_and_resume() {
     assert_eq!(c.control_period, cfg.task.control_period);
     let svg = std::fs::read_to_string(out.join("training.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("success rate") && svg.contains("<polyline"), "training.svg drawn");
+    std::fs::remove_dir_all(out).ok();
+}
+
+/// Each epoch's row (first column) of metrics.csv, in file order.
+fn csv_epochs(dir: &Path) -> Vec<usize> {
+    let text = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    text.lines().skip(1).map(|l| l.split(',').next().unwrap().parse().unwrap()).collect()
+}
+
+/// The steps of one TensorBoard curve over all of a run's event files, in file order.
+fn tb_steps(dir: &Path) -> Vec<i64> {
+    let files = rlnav_train::tensorboard::event_files(&dir.join("tensorboard")).unwrap();
+    let mut steps = Vec::new();
+    for f in files {
+        let events = rlnav_train::tensorboard::read_scalars(&f).unwrap();
+        steps.extend(events.iter().filter(|(_, t, _)| t == "episodes/success_rate").map(|(s, _, _)| *s));
+    }
+    steps
+}
+
+#[test]
+fn resume_after_a_kill_logs_each_epoch_once() {
+    let out = tmp("killed");
+    let steps_per_epoch = 16 * 32;
+    // Stop at epoch 3 (checkpoint 3), keep that checkpoint, then go on to epoch 5.
+    let o = opts(&out, false);
+    let stop = o.stop.clone();
+    train(&smoke(5), &o, &mut |r| {
+        if r.epoch == 3 {
+            stop.store(true, Ordering::Relaxed);
+        }
+    })
+    .unwrap();
+    let saved = tmp("killed-checkpoint");
+    std::fs::create_dir_all(&saved).unwrap();
+    for f in ["model.bpk", "optimizer.bpk", "state.json"] {
+        std::fs::copy(out.join("checkpoint").join(f), saved.join(f)).unwrap();
+    }
+    train(&smoke(5), &opts(&out, true), &mut |_| {}).unwrap();
+    // Now make it look like `kill -9` after epoch 5, before the next checkpoint: the
+    // checkpoint is epoch 3's, the logs run to epoch 5, each with a half-written last entry.
+    for f in ["model.bpk", "optimizer.bpk", "state.json"] {
+        std::fs::copy(saved.join(f), out.join("checkpoint").join(f)).unwrap();
+    }
+    let mut csv = std::fs::OpenOptions::new().append(true).open(out.join("metrics.csv")).unwrap();
+    csv.write_all(b"6,3072,1.2").unwrap();
+    drop(csv);
+    let last_tb = rlnav_train::tensorboard::event_files(&out.join("tensorboard")).unwrap().pop().unwrap();
+    let mut tb = std::fs::OpenOptions::new().append(true).open(&last_tb).unwrap();
+    tb.write_all(&[40, 0, 0, 0, 0]).unwrap();
+    drop(tb);
+    assert_eq!(csv_epochs_lossy(&out), vec![1, 2, 3, 4, 5]);
+    assert!(rlnav_train::tensorboard::read_scalars(&last_tb).is_err(), "the cut record is there");
+
+    assert!(out.join("best/state.json").is_file(), "epoch 5's evaluation saved best/");
+
+    let mut epochs = Vec::new();
+    let mut stale_best = true;
+    let s = train(&smoke(7), &opts(&out, true), &mut |r| {
+        epochs.push(r.epoch);
+        if r.epoch == 4 {
+            stale_best = out.join("best").exists();
+        }
+    })
+    .unwrap();
+    assert_eq!(epochs, vec![4, 5, 6, 7], "resumed from the checkpoint, not from the log");
+    assert!(!stale_best, "best/ from the discarded epochs is gone");
+    assert_eq!((s.iterations, s.best_epoch, s.final_epoch), (7, 7, 7));
+    assert_eq!(csv_epochs(&out), (1..=7).collect::<Vec<_>>(), "each epoch once, in order");
+    let text = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    let env_steps: Vec<i64> = text.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
+    assert_eq!(env_steps, (1..=7).map(|e| e * steps_per_epoch).collect::<Vec<i64>>());
+    let steps = tb_steps(&out);
+    assert_eq!(steps.len(), 7, "no step twice: {steps:?}");
+    assert_eq!(steps, (1..=7).map(|e| e * steps_per_epoch).collect::<Vec<i64>>());
+    std::fs::remove_dir_all(out).ok();
+    std::fs::remove_dir_all(saved).ok();
+}
+
+/// [`csv_epochs`] ignoring a half-written last line.
+fn csv_epochs_lossy(dir: &Path) -> Vec<usize> {
+    let text = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    text.split_inclusive('\n')
+        .skip(1)
+        .filter(|l| l.ends_with('\n'))
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn a_corrupt_metrics_row_stops_resume_with_its_line() {
+    let out = tmp("bad-row");
+    train(&smoke(1), &opts(&out, false), &mut |_| {}).unwrap();
+    let mut text = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    text.push_str("oops,1,2\n");
+    std::fs::write(out.join("metrics.csv"), &text).unwrap();
+    let e = train(&smoke(2), &opts(&out, true), &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("metrics.csv:3") && e.contains("epoch number"), "{e}");
+    assert_eq!(std::fs::read_to_string(out.join("metrics.csv")).unwrap(), text, "left as it was");
     std::fs::remove_dir_all(out).ok();
 }
 
