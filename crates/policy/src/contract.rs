@@ -3,7 +3,7 @@
 //! [`CONTRACT_KEY`], YAML) or, for models rlnav did not write, in a side YAML file.
 
 use rlnav_sim::config::{ConfigError, Invalid, Validate, check_interval, check_positive, check_range};
-use rlnav_sim::task::{ObsTerm, ObservationLayout};
+use rlnav_sim::task::ObservationLayout;
 use rlnav_sim::{LidarSpec, Twist};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -190,19 +190,11 @@ impl Validate for PolicyContract {
         if self.format != CONTRACT_FORMAT {
             return Err(Invalid::new("format", format!("{CONTRACT_FORMAT} (this rlnav's), got {}", self.format)));
         }
-        if self.observation.0.is_empty() {
-            return Err(Invalid::new("observation", "at least one term"));
-        }
+        self.observation.check()?;
         self.scan.lidar_spec().validate().map_err(|e| e.under("scan"))?;
-        for (i, t) in self.observation.0.iter().enumerate() {
-            if let ObsTerm::Lidar { beams, clip } = t {
-                if *beams == 0 || self.scan.beams % beams != 0 {
-                    return Err(Invalid::new(
-                        format!("observation[{i}].lidar.beams"),
-                        format!("a divisor of scan.beams ({}), got {beams}", self.scan.beams),
-                    ));
-                }
-                check_interval(&format!("observation[{i}].lidar.clip"), *clip, 0.0, 1000.0)?;
+        for (key, beams) in self.observation.lidar_terms() {
+            if self.scan.beams % beams != 0 {
+                return Err(Invalid::new(key, format!("a divisor of scan.beams ({}), got {beams}", self.scan.beams)));
             }
         }
         check_interval("action.linear", self.action.linear, -100.0, 100.0)?;

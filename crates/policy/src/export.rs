@@ -297,3 +297,46 @@ pub fn export_onnx(
 ) -> Result<Vec<u8>, ExportError> {
     Ok(export_model(net, norm, contract)?.encode_to_vec())
 }
+
+/// A model of the contract's shape whose action mean echoes two observation values:
+/// `mu = [obs[reads[0]], obs[reads[1]]]`. Run through a deployment with `scaling: direct` and
+/// wide action limits, its commands show which values sit where, so that a side contract (or
+/// the code that feeds it) can be checked against a layout value by value. Each recurrent
+/// state's output is its input plus one (a step count that the runner carries). No contract
+/// in `metadata_props`: it stands for a foreign model.
+pub fn echo_model(obs_dim: usize, reads: [usize; 2], io: &GraphIo) -> Result<pb::ModelProto, ExportError> {
+    if let Some(r) = reads.iter().find(|r| **r >= obs_dim) {
+        return Err(ExportError::Shape(format!("index {r} read from an observation of {obs_dim} values")));
+    }
+    let mut g = Graph { nodes: Vec::new(), inits: Vec::new(), count: 0 };
+    let mut w = vec![0.0; obs_dim * 2];
+    w[reads[0] * 2] = 1.0;
+    w[reads[1] * 2 + 1] = 1.0;
+    let w = g.tensor("echo.weight", &[obs_dim, 2], w);
+    let b = g.tensor("echo.bias", &[2], vec![0.0; 2]);
+    g.node("Gemm", &[&io.obs, &w, &b], &[&io.mu], Vec::new());
+    let mut inputs = vec![value_info(&io.obs, &[None, Some(obs_dim)])];
+    let mut outputs = vec![value_info(&io.mu, &[None, Some(2)])];
+    let one = g.tensor("one", &[], vec![1.0]);
+    for s in &io.recurrent {
+        let dims: Vec<Option<usize>> = s.shape.iter().map(|d| Some(*d)).collect();
+        g.node("Add", &[&s.input, &one], &[&s.output], Vec::new());
+        inputs.push(value_info(&s.input, &dims));
+        outputs.push(value_info(&s.output, &dims));
+    }
+    Ok(pb::ModelProto {
+        ir_version: 8,
+        opset_import: vec![pb::OperatorSetIdProto { domain: String::new(), version: OPSET }],
+        producer_name: "rlnav echo".into(),
+        producer_version: env!("CARGO_PKG_VERSION").into(),
+        graph: Some(pb::GraphProto {
+            name: "echo".into(),
+            node: g.nodes,
+            initializer: g.inits,
+            input: inputs,
+            output: outputs,
+            ..Default::default()
+        }),
+        ..Default::default()
+    })
+}

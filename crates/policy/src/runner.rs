@@ -6,8 +6,7 @@
 
 use crate::contract::{CONTRACT_KEY, PolicyContract};
 use crate::scan::{ScanAdapter, ScanError};
-use rlnav_sim::lidar::min_pool;
-use rlnav_sim::task::ObsTerm;
+use rlnav_sim::observation::{ObservationBuilder, ObservationInputs};
 use rlnav_sim::{Controller, RobotObservation, Twist};
 use std::path::Path;
 use tract_onnx::pb;
@@ -86,7 +85,9 @@ pub struct PolicyRunner {
     state: Vec<Tensor>,
     obs: Vec<f32>,
     scan: Vec<f32>,
-    pooled: Vec<f32>,
+    /// The same builder the simulator writes training observations with; it keeps the
+    /// history terms' past.
+    observer: ObservationBuilder,
     adapter: Option<ScanAdapter>,
     last: Twist,
     fault: Option<String>,
@@ -215,13 +216,6 @@ impl PolicyRunner {
         }
         let plan = model.into_optimized().and_then(|m| m.into_runnable()).map_err(tract_err)?;
         let state = io.recurrent.iter().map(|s| Tensor::zero::<f32>(&s.shape).expect("shape")).collect();
-        let max_pool = contract
-            .observation
-            .0
-            .iter()
-            .filter_map(|t| if let ObsTerm::Lidar { beams, .. } = t { Some(*beams) } else { None })
-            .max()
-            .unwrap_or(0);
         let name = format!(
             "rl:{}",
             Path::new(file).file_stem().map_or_else(|| file.to_string(), |s| s.to_string_lossy().into_owned())
@@ -238,7 +232,7 @@ impl PolicyRunner {
             state,
             obs: vec![0.0; n],
             scan: vec![0.0; contract.scan.beams],
-            pooled: vec![0.0; max_pool],
+            observer: ObservationBuilder::new(&contract.observation),
             adapter: None,
             last: Twist::default(),
             fault: None,
@@ -278,6 +272,7 @@ impl PolicyRunner {
         for (t, s) in self.state.iter_mut().zip(&self.contract.io.recurrent) {
             *t = Tensor::zero::<f32>(&s.shape).expect("shape");
         }
+        self.observer.reset();
         self.last = Twist::default();
     }
 
@@ -312,39 +307,24 @@ impl PolicyRunner {
     }
 
     /// Builds the contract's observation vector from what the robot reports; the command
-    /// given last is this runner's own.
+    /// given last is this runner's own. History terms show the observations of the steps
+    /// acted on since the last reset; building again before acting replaces the current step.
     pub fn build_observation(&mut self, o: &RobotObservation) -> Result<&[f32], PolicyError> {
         let mount_yaw = o.scan_mount.yaw;
         if !self.adapter.as_ref().is_some_and(|a| a.fits(&o.scan, mount_yaw)) {
             self.adapter = Some(ScanAdapter::new(&self.contract.scan, &o.scan, mount_yaw)?);
         }
         self.adapter.as_ref().expect("set above").adapt(&o.scan, &mut self.scan)?;
-        let (dist, bearing) = o.goal_polar();
-        let mut k = 0;
-        for term in &self.contract.observation.0 {
-            match term {
-                ObsTerm::Lidar { beams, clip } => {
-                    let pooled = &mut self.pooled[..*beams];
-                    min_pool(&self.scan, pooled);
-                    for (x, r) in self.obs[k..k + beams].iter_mut().zip(pooled.iter()) {
-                        *x = r.min(clip[1]).clamp(clip[0], clip[1]);
-                    }
-                    k += beams;
-                }
-                other => {
-                    self.obs[k] = match other {
-                        ObsTerm::GoalDistance => dist,
-                        ObsTerm::GoalBearing => bearing,
-                        ObsTerm::LastLinear => self.last.linear,
-                        ObsTerm::LastAngular => self.last.angular,
-                        ObsTerm::Linear => o.velocity.linear,
-                        ObsTerm::Angular => o.velocity.angular,
-                        ObsTerm::Lidar { .. } => unreachable!(),
-                    };
-                    k += 1;
-                }
-            }
-        }
+        let (goal_distance, goal_bearing) = o.goal_polar();
+        let inputs = ObservationInputs {
+            ranges: &self.scan,
+            goal_distance,
+            goal_bearing,
+            last_command: self.last,
+            velocity: o.velocity,
+            lateral_velocity: o.lateral_velocity,
+        };
+        self.observer.write(&inputs, &mut self.obs, || 0.0);
         if let Some(i) = self.obs.iter().position(|x| !x.is_finite()) {
             return Err(PolicyError::Inference(format!(
                 "observation value {i} is not finite (pose, goal or velocity)"
@@ -356,6 +336,9 @@ impl PolicyRunner {
     /// One control step: observation, inference, command; errors instead of stopping.
     pub fn try_act(&mut self, o: &RobotObservation) -> Result<Twist, PolicyError> {
         self.build_observation(o)?;
+        // This step's observation joins the history whatever the network makes of it: the
+        // robot was there and saw it.
+        self.observer.commit();
         let obs = std::mem::take(&mut self.obs);
         let out = self.infer(&obs);
         self.obs = obs;

@@ -2,6 +2,8 @@
 //! robot reports, adapts scans of other geometries, stops on garbage, and runs the article's
 //! own policies through their side contracts.
 
+mod common;
+
 use burn::prelude::*;
 use rlnav_policy::contract::{
     ActionContract, ActionScaling, BeamOrder, CONTRACT_FORMAT, GraphIo, PolicyContract, ScanContract,
@@ -42,27 +44,7 @@ fn runner_sees_what_the_simulator_feeds_training() {
     let proto = export_model(&net, &RunningMeanStd::new(124), &contract_for(&setup)).unwrap();
     let mut runner = PolicyRunner::from_proto("test.onnx", &proto, contract_for(&setup)).unwrap();
     let mut env = NavEnv::new(setup.clone(), 5).unwrap();
-    let (mut sim_obs, mut robot) = (vec![0.0; 124], RobotObservation::default());
-    let mut steps = 0;
-    for _ in 0..3 {
-        runner.reset();
-        loop {
-            env.write_observation(&mut sim_obs);
-            env.robot_observation(&mut robot);
-            let built = runner.build_observation(&robot).unwrap().to_vec();
-            for (i, (a, b)) in built.iter().zip(&sim_obs).enumerate() {
-                assert!((a - b).abs() <= 1e-6, "value {i}: runner {a} simulator {b}");
-            }
-            let cmd = runner.act(&robot);
-            assert!(runner.fault().is_none());
-            steps += 1;
-            let s = env.step_twist(cmd);
-            if s.terminated || s.truncated {
-                env.reset().unwrap();
-                break;
-            }
-        }
-    }
+    let steps = common::runner_matches_simulator(&mut runner, &mut env, "static-room");
     assert!(steps > 20, "{steps} steps compared");
 }
 
@@ -143,13 +125,14 @@ fn garbage_in_stops_the_robot_and_says_why() {
     assert!(runner.fault().is_none());
 }
 
-const SEEDS: &str = "../../../shared/fixtures/seed-policies";
+/// The reference article's policies, vendored with their licence.
+const ARTICLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/article");
 
 #[test]
 fn the_articles_policies_run_through_their_side_contracts() {
     let contracts = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../contracts");
     for (model, n, recurrent) in [("static_120_new", 124, false), ("Jetbot_margin_dynamic", 70, true)] {
-        let path = Path::new(SEEDS).join(format!("{model}.onnx"));
+        let path = Path::new(ARTICLE).join(format!("{model}.onnx"));
         // Without a contract: refused, pointing at --contract.
         let e = PolicyRunner::load(&path, None).unwrap_err().to_string();
         assert!(e.contains("--contract"), "{e}");

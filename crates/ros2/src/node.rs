@@ -180,6 +180,8 @@ impl std::fmt::Display for NodeState {
 struct PoseSample {
     pose: Pose2,
     velocity: Twist,
+    /// Lateral velocity (m/s, `base_link` y).
+    lateral: f32,
     received: f64,
 }
 
@@ -283,7 +285,10 @@ impl PolicyNode {
         match finite_pose(&m.pose.pose) {
             Some(pose) if t.linear.x.is_finite() && t.angular.z.is_finite() => {
                 let velocity = Twist::new(t.linear.x as f32, t.angular.z as f32);
-                self.set_pose(PoseSample { pose, velocity, received: now }, &m.header.frame_id);
+                // A non-finite lateral velocity only matters to a policy that reads it; its
+                // observation check stops the robot then.
+                let lateral = t.linear.y as f32;
+                self.set_pose(PoseSample { pose, velocity, lateral, received: now }, &m.header.frame_id);
             }
             _ => {
                 self.rejected += 1;
@@ -299,17 +304,19 @@ impl PolicyNode {
             self.pose = None;
             return;
         };
-        let velocity = match self.pose {
+        let (velocity, lateral) = match self.pose {
             Some(prev) if now - prev.received > 1e-3 => {
                 let dt = (now - prev.received) as f32;
                 let d = pose.position() - prev.pose.position();
-                let forward = d.x * prev.pose.yaw.cos() + d.y * prev.pose.yaw.sin();
-                Twist::new(forward / dt, wrap_angle(pose.yaw - prev.pose.yaw) / dt)
+                let (sin, cos) = prev.pose.yaw.sin_cos();
+                let forward = d.x * cos + d.y * sin;
+                let left = -d.x * sin + d.y * cos;
+                (Twist::new(forward / dt, wrap_angle(pose.yaw - prev.pose.yaw) / dt), left / dt)
             }
-            Some(prev) => prev.velocity,
-            None => Twist::default(),
+            Some(prev) => (prev.velocity, prev.lateral),
+            None => (Twist::default(), 0.0),
         };
-        self.set_pose(PoseSample { pose, velocity, received: now }, &m.header.frame_id);
+        self.set_pose(PoseSample { pose, velocity, lateral, received: now }, &m.header.frame_id);
     }
 
     fn set_pose(&mut self, sample: PoseSample, frame: &str) {
@@ -443,6 +450,7 @@ impl PolicyNode {
             scan_mount: Pose2::new(0.0, 0.0, self.params.lidar_yaw_offset),
             pose: pose.pose,
             velocity: pose.velocity,
+            lateral_velocity: pose.lateral,
             goal,
             last_command: self.last_command,
             time: (now - started) as f32,

@@ -194,6 +194,48 @@ fn a_flood_of_mixed_messages_keeps_memory_flat() {
     }
 }
 
+/// The article's 133-value layout through the node: odometry's lateral velocity reaches its
+/// place in the observation, the goal bearing history follows the ticks, and a new goal starts
+/// a new history (the runner is reset).
+#[test]
+fn odometry_and_goals_feed_the_articles_133_layout() {
+    use rlnav_policy::contract::{ActionContract, ActionScaling, PolicyContract};
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts/article-mlp-133.yaml");
+    let mut contract = PolicyContract::from_file(std::path::Path::new(path)).unwrap();
+    contract.action = ActionContract { scaling: ActionScaling::Direct, linear: [-9.0, 9.0], angular: [-9.0, 9.0] };
+    // mu = [lateral velocity (value 131), the oldest goal bearing of five (value 120)].
+    let proto = rlnav_policy::export::echo_model(133, [131, 120], &contract.io).unwrap();
+    let runner = PolicyRunner::from_proto("echo.onnx", &proto, contract).unwrap();
+    let mut n = PolicyNode::new(runner, NodeParams::default());
+    let odom_sliding = |x: f64, lateral: f64| {
+        let mut o = odom(x, 0.0, 0.0);
+        o.twist.twist.linear.y = lateral;
+        o
+    };
+    n.on_odom(&odom_sliding(0.0, 0.07), 0.0);
+    n.on_goal(&goal(3.0, 1.0, "odom"));
+    n.on_scan(&scan(vec![1.5; 360], 1), 0.0);
+    let first = (1.0f32).atan2(3.0);
+    let c = n.tick(0.0);
+    assert_eq!(*n.state(), NodeState::Driving);
+    assert!((c.linear - 0.07).abs() < 1e-6 && (c.angular - first).abs() < 1e-6, "{c:?}");
+    // Four more ticks from elsewhere: the oldest of the five bearings is still the first.
+    for k in 1..5 {
+        n.on_odom(&odom_sliding(0.2 * k as f64, -0.03), 0.1 * k as f64);
+        n.on_scan(&scan(vec![1.5; 360], 1 + k), 0.1 * k as f64);
+        let c = n.tick(0.1 * k as f64);
+        assert!((c.linear + 0.03).abs() < 1e-6 && (c.angular - first).abs() < 1e-6, "tick {k}: {c:?}");
+    }
+    // The sixth tick has rolled it out: the oldest is the second tick's bearing.
+    n.on_scan(&scan(vec![1.5; 360], 6), 0.5);
+    let c = n.tick(0.5);
+    assert!((c.angular - (1.0f32).atan2(2.8)).abs() < 1e-5, "{c:?}");
+    // A new goal: a new history, all five bearings the new goal's.
+    n.on_goal(&goal(0.8, 2.0, "odom"));
+    let c = n.tick(0.55);
+    assert!((c.angular - (2.0f32).atan2(0.8 - 0.8)).abs() < 1e-5, "{c:?}");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
     /// Whatever a scan holds, the command is finite and within the policy's limits.

@@ -63,8 +63,11 @@ pub struct RobotObservation {
     pub scan_mount: Pose2,
     /// Robot pose in the odometry frame.
     pub pose: Pose2,
-    /// Measured body velocity.
+    /// Measured body velocity: forward (`base_link` x) and angular.
     pub velocity: Twist,
+    /// Measured lateral body velocity (m/s, `base_link` y, left positive): odometry's
+    /// `twist.linear.y`; 0 for a differential drive.
+    pub lateral_velocity: f32,
     /// Goal position in the odometry frame.
     pub goal: Vec2,
     /// The command sent at the previous control step.

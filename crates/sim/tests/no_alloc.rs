@@ -1,7 +1,8 @@
 //! Stepping allocates nothing: a counting global allocator watches the hot path.
 
-use rlnav_sim::task::{EnvSetup, NavEnv};
+use rlnav_sim::task::{EnvSetup, HistoryFill, HistoryOrder, NavEnv, ObsTerm, ObservationLayout, TaskConfig};
 use rlnav_sim::vec_env::VecEnv;
+use rlnav_sim::{RobotSpec, ScenarioSpec};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -58,6 +59,39 @@ fn stepping_does_not_allocate() {
     }
     assert!(resets > 5);
     assert_eq!(MINE.with(|c| c.get()) - before, 0, "NavEnv step/reset allocated");
+
+    // A layout with history terms (the article's 133 values): its past is kept in place.
+    let spec = ScenarioSpec::load("static-room").unwrap();
+    let robot = RobotSpec::load(&spec.robot).unwrap();
+    let history = |term| ObsTerm::History {
+        term: Box::new(term),
+        steps: 5,
+        order: HistoryOrder::OldestFirst,
+        fill: HistoryFill::First,
+    };
+    let observation = ObservationLayout(vec![
+        ObsTerm::Lidar { beams: 120, clip: [0.15, 2.0] },
+        history(ObsTerm::GoalBearing),
+        history(ObsTerm::GoalDistance),
+        ObsTerm::Linear,
+        ObsTerm::Lateral,
+        ObsTerm::Angular,
+    ]);
+    let task = TaskConfig { observation, ..Default::default() };
+    let mut env = NavEnv::new(Arc::new(EnvSetup::new(spec, robot, task).unwrap()), 3).unwrap();
+    let mut obs = vec![0.0; 133];
+    let before = MINE.with(|c| c.get());
+    for i in 0..2000 {
+        // Every other step without a write: the step records its observation itself.
+        let out = env.step([((i % 7) as f32 / 3.0) - 1.0, ((i % 5) as f32 / 2.0) - 1.0]);
+        if i % 2 == 0 {
+            env.write_observation(&mut obs);
+        }
+        if out.terminated || out.truncated {
+            env.reset().unwrap();
+        }
+    }
+    assert_eq!(MINE.with(|c| c.get()) - before, 0, "NavEnv with history terms allocated");
 
     // The batched environment on its worker threads.
     let mut venv = VecEnv::new(setup, 64, 3, 2).unwrap();

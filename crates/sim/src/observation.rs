@@ -1,0 +1,572 @@
+//! The observation vector: its layout as data ([`ObservationLayout`], a list of [`ObsTerm`]s)
+//! and the one builder that turns what a robot measures into that vector
+//! ([`ObservationBuilder`]). The simulator's training observation and the deployed policy's
+//! observation (`rlnav-policy`'s runner, hence the ROS 2 node) are both written by it, so they
+//! cannot drift apart.
+//!
+//! A [`ObsTerm::History`] stacks a term's values of the last control steps. The builder keeps
+//! them: every [`ObservationBuilder::write`] shows the stored past values and the current one,
+//! [`ObservationBuilder::commit`] (once per control step, when the step is taken) stores what
+//! was written last as the newest past value, and [`ObservationBuilder::reset`] forgets the
+//! past at the start of an episode.
+
+use crate::config::{Invalid, Validate, check_interval};
+use crate::controller::Twist;
+use crate::lidar::min_pool;
+use serde::{Deserialize, Serialize};
+
+/// Largest history a term may ask for (steps).
+pub const MAX_HISTORY_STEPS: usize = 1000;
+
+/// One term of the observation vector.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ObsTerm {
+    /// Lidar ranges, min-pooled from the scan's beams down to `beams` (which must divide the
+    /// scan's beam count), clipped to `clip`; a beam with no return reads `clip[1]`.
+    Lidar {
+        /// Values after pooling.
+        beams: usize,
+        /// `[min, max]` (m).
+        clip: [f32; 2],
+    },
+    /// Distance to the goal (m).
+    GoalDistance,
+    /// Bearing of the goal in the robot frame (rad, (-π, π]).
+    GoalBearing,
+    /// The previous command's linear velocity (m/s).
+    LastLinear,
+    /// The previous command's angular velocity (rad/s).
+    LastAngular,
+    /// Measured forward velocity (m/s, `base_link` x), as odometry reports it
+    /// (`twist.linear.x`).
+    Linear,
+    /// Measured lateral velocity (m/s, `base_link` y, left positive), as odometry reports it
+    /// (`twist.linear.y`). Always 0 for a differential drive; there for layouts that expect it.
+    Lateral,
+    /// Measured angular velocity (rad/s).
+    Angular,
+    /// The values of `term` at the last `steps` control steps, the current one included
+    /// (`steps × term.len()` values).
+    History {
+        /// The term whose past is stacked (any term but a history).
+        term: Box<ObsTerm>,
+        /// Control steps kept, the current one included (1 is the current value only).
+        steps: usize,
+        /// Where the newest value goes.
+        order: HistoryOrder,
+        /// What the steps before the episode's first read (default: its first value).
+        #[serde(default)]
+        fill: HistoryFill,
+    },
+}
+
+/// Order of the steps in a history stack.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HistoryOrder {
+    /// Chronological: the oldest step first, the current value last.
+    OldestFirst,
+    /// The current value first, then older and older steps.
+    NewestFirst,
+}
+
+/// What a history shows for the steps before the episode started.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HistoryFill {
+    /// The episode's first value (as if the robot had stood there).
+    #[default]
+    First,
+    /// Zeros.
+    Zero,
+}
+
+impl ObsTerm {
+    /// Number of values this term contributes.
+    pub fn len(&self) -> usize {
+        match self {
+            ObsTerm::Lidar { beams, .. } => *beams,
+            ObsTerm::History { term, steps, .. } => steps * term.len(),
+            _ => 1,
+        }
+    }
+
+    /// Whether the term contributes nothing (never for a valid term: kept for the `len`
+    /// convention).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The lidar term's `(beams, clip)`, also when it is the term of a history.
+    pub fn lidar(&self) -> Option<(usize, [f32; 2])> {
+        match self {
+            ObsTerm::Lidar { beams, clip } => Some((*beams, *clip)),
+            ObsTerm::History { term, .. } => term.lidar(),
+            _ => None,
+        }
+    }
+
+    /// The term's YAML name (`goal_bearing`, `history`...).
+    pub fn name(&self) -> &'static str {
+        match self {
+            ObsTerm::Lidar { .. } => "lidar",
+            ObsTerm::GoalDistance => "goal_distance",
+            ObsTerm::GoalBearing => "goal_bearing",
+            ObsTerm::LastLinear => "last_linear",
+            ObsTerm::LastAngular => "last_angular",
+            ObsTerm::Linear => "linear",
+            ObsTerm::Lateral => "lateral",
+            ObsTerm::Angular => "angular",
+            ObsTerm::History { .. } => "history",
+        }
+    }
+
+    /// A short description for listings (`lidar 120 beams, clip [0.15, 2]`, `goal_bearing × 5,
+    /// oldest first`).
+    pub fn describe(&self) -> String {
+        match self {
+            ObsTerm::Lidar { beams, clip } => format!("lidar {beams} beams, clip [{}, {}]", clip[0], clip[1]),
+            ObsTerm::History { term, steps, order, fill } => format!(
+                "{} × {steps}, {}, before the episode: {}",
+                term.describe(),
+                match order {
+                    HistoryOrder::OldestFirst => "oldest first",
+                    HistoryOrder::NewestFirst => "newest first",
+                },
+                match fill {
+                    HistoryFill::First => "its first value",
+                    HistoryFill::Zero => "zeros",
+                }
+            ),
+            other => other.name().to_string(),
+        }
+    }
+
+    /// Checks the term; `key` names it in errors (`observation[3]`).
+    fn check(&self, key: &str) -> Result<(), Invalid> {
+        match self {
+            ObsTerm::Lidar { beams, clip } => {
+                if *beams == 0 {
+                    return Err(Invalid::new(format!("{key}.lidar.beams"), "at least 1"));
+                }
+                check_interval(&format!("{key}.lidar.clip"), *clip, 0.0, 1000.0)
+            }
+            ObsTerm::History { term, steps, .. } => {
+                if !(1..=MAX_HISTORY_STEPS).contains(steps) {
+                    return Err(Invalid::new(
+                        format!("{key}.history.steps"),
+                        format!("1 to {MAX_HISTORY_STEPS} control steps, got {steps}"),
+                    ));
+                }
+                if matches!(**term, ObsTerm::History { .. }) {
+                    return Err(Invalid::new(format!("{key}.history.term"), "a term that is not itself a history"));
+                }
+                term.check(&format!("{key}.history.term"))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// The observation vector's layout: an ordered list of terms. Data, not code, so that other
+/// layouts (the seed policies', stacked frames...) are configuration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct ObservationLayout(pub Vec<ObsTerm>);
+
+impl Default for ObservationLayout {
+    /// The article's `[L_t (120 ranges, 0.15-3 m), d_t, θ_t, v_{t-1}, ω_{t-1}]`: 124 values.
+    fn default() -> Self {
+        ObservationLayout(vec![
+            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
+            ObsTerm::GoalDistance,
+            ObsTerm::GoalBearing,
+            ObsTerm::LastLinear,
+            ObsTerm::LastAngular,
+        ])
+    }
+}
+
+impl ObservationLayout {
+    /// Length of the observation vector.
+    pub fn len(&self) -> usize {
+        self.0.iter().map(ObsTerm::len).sum()
+    }
+
+    /// Whether the layout is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Checks every term (lidar beams and clip, history steps and nesting) and that there is
+    /// at least one; keys read `observation[i]...`.
+    pub fn check(&self) -> Result<(), Invalid> {
+        if self.0.is_empty() {
+            return Err(Invalid::new("observation", "at least one term"));
+        }
+        for (i, t) in self.0.iter().enumerate() {
+            t.check(&format!("observation[{i}]"))?;
+        }
+        Ok(())
+    }
+
+    /// The lidar terms (also those inside histories) with their keys: `(key, beams)`.
+    pub fn lidar_terms(&self) -> impl Iterator<Item = (String, usize)> + '_ {
+        self.0.iter().enumerate().filter_map(|(i, t)| {
+            let key = match t {
+                ObsTerm::History { .. } => format!("observation[{i}].history.term.lidar.beams"),
+                _ => format!("observation[{i}].lidar.beams"),
+            };
+            t.lidar().map(|(beams, _)| (key, beams))
+        })
+    }
+
+    /// Where each term's values lie: `(first index, term)` in layout order.
+    pub fn spans(&self) -> impl Iterator<Item = (usize, &ObsTerm)> + '_ {
+        self.0.iter().scan(0, |k, t| {
+            let start = *k;
+            *k += t.len();
+            Some((start, t))
+        })
+    }
+
+    fn max_lidar_beams(&self) -> usize {
+        self.0.iter().filter_map(|t| t.lidar().map(|(b, _)| b)).max().unwrap_or(0)
+    }
+}
+
+impl Validate for ObservationLayout {
+    fn validate(&self) -> Result<(), Invalid> {
+        self.check()
+    }
+}
+
+/// What the observation is built from at one control step.
+#[derive(Clone, Copy, Debug)]
+pub struct ObservationInputs<'a> {
+    /// The scan, counter-clockwise from the layout's first beam; its length must be a
+    /// multiple of every lidar term's beams. `+inf` is no return.
+    pub ranges: &'a [f32],
+    /// Goal distance (m).
+    pub goal_distance: f32,
+    /// Goal bearing in the robot frame (rad).
+    pub goal_bearing: f32,
+    /// The command given at the previous control step.
+    pub last_command: Twist,
+    /// Measured forward and angular velocity.
+    pub velocity: Twist,
+    /// Measured lateral velocity (m/s, `base_link` y).
+    pub lateral_velocity: f32,
+}
+
+/// The past of one history term.
+#[derive(Clone, Debug)]
+struct Stack {
+    /// Values per step.
+    width: usize,
+    /// Steps shown, the current one included.
+    steps: usize,
+    order: HistoryOrder,
+    fill: HistoryFill,
+    /// Up to `steps - 1` past steps, oldest first, `width` values each.
+    past: Vec<f32>,
+    /// Past steps stored.
+    stored: usize,
+    /// The current values written last (stored by the next commit).
+    newest: Vec<f32>,
+}
+
+impl Stack {
+    /// The values of chronological step `s` (`steps - 1` is the current one).
+    fn step(&self, s: usize) -> Option<&[f32]> {
+        let w = self.width;
+        let missing = self.steps - 1 - self.stored;
+        if s == self.steps - 1 {
+            Some(self.newest.as_slice())
+        } else if s >= missing {
+            let p = s - missing;
+            Some(&self.past[p * w..(p + 1) * w])
+        } else {
+            match self.fill {
+                HistoryFill::First if self.stored > 0 => Some(&self.past[..w]),
+                HistoryFill::First => Some(self.newest.as_slice()),
+                HistoryFill::Zero => None,
+            }
+        }
+    }
+
+    fn push(&mut self) {
+        let w = self.width;
+        let cap = self.steps - 1;
+        if cap == 0 {
+            return;
+        }
+        if self.stored == cap {
+            self.past.copy_within(w.., 0);
+            self.stored -= 1;
+        }
+        self.past[self.stored * w..(self.stored + 1) * w].copy_from_slice(&self.newest);
+        self.stored += 1;
+    }
+}
+
+/// Builds observation vectors of one layout, keeping the past its history terms need.
+/// Writing and committing allocate nothing.
+#[derive(Clone, Debug)]
+pub struct ObservationBuilder {
+    layout: ObservationLayout,
+    pooled: Vec<f32>,
+    /// One per history term, in layout order.
+    stacks: Vec<Stack>,
+    /// Whether the current step's observation was written since the last commit or reset.
+    written: bool,
+}
+
+impl ObservationBuilder {
+    /// A builder for `layout` (checked beforehand: see [`ObservationLayout::check`]).
+    pub fn new(layout: &ObservationLayout) -> Self {
+        let stacks = layout
+            .0
+            .iter()
+            .filter_map(|t| match t {
+                ObsTerm::History { term, steps, order, fill } => Some(Stack {
+                    width: term.len(),
+                    steps: *steps,
+                    order: *order,
+                    fill: *fill,
+                    past: vec![0.0; steps.saturating_sub(1) * term.len()],
+                    stored: 0,
+                    newest: vec![0.0; term.len()],
+                }),
+                _ => None,
+            })
+            .collect();
+        Self { layout: layout.clone(), pooled: vec![0.0; layout.max_lidar_beams()], stacks, written: false }
+    }
+
+    /// The layout.
+    pub fn layout(&self) -> &ObservationLayout {
+        &self.layout
+    }
+
+    /// Whether the layout has history terms (and [`commit`](Self::commit) matters).
+    pub fn has_history(&self) -> bool {
+        !self.stacks.is_empty()
+    }
+
+    /// Whether an observation was written since the last commit or reset.
+    pub fn is_written(&self) -> bool {
+        self.written
+    }
+
+    /// Forgets the past (a new episode).
+    pub fn reset(&mut self) {
+        for s in &mut self.stacks {
+            s.stored = 0;
+        }
+        self.written = false;
+    }
+
+    /// Stores the history terms' values written last as their newest past step: call it once
+    /// per control step, when the step is taken. Without a write since the last commit it
+    /// stores nothing.
+    pub fn commit(&mut self) {
+        if self.written {
+            for s in &mut self.stacks {
+                s.push();
+            }
+        }
+        self.written = false;
+    }
+
+    /// Writes the observation for `inputs` into `out` (length [`ObservationLayout::len`]);
+    /// `lidar_noise()` is added to every lidar value before clipping (the simulator's
+    /// randomisation; `|| 0.0` for none). Writing again before a commit replaces the current
+    /// step's values.
+    pub fn write(&mut self, inputs: &ObservationInputs, out: &mut [f32], mut lidar_noise: impl FnMut() -> f32) {
+        let Self { layout, pooled, stacks, written } = self;
+        let mut k = 0;
+        let mut h = 0;
+        for term in &layout.0 {
+            let n = term.len();
+            let dst = &mut out[k..k + n];
+            if let ObsTerm::History { term, .. } = term {
+                let s = &mut stacks[h];
+                h += 1;
+                write_term(term, inputs, pooled, &mut s.newest, &mut lidar_noise);
+                let w = s.width;
+                for step in 0..s.steps {
+                    let slot = match s.order {
+                        HistoryOrder::OldestFirst => step,
+                        HistoryOrder::NewestFirst => s.steps - 1 - step,
+                    };
+                    let d = &mut dst[slot * w..(slot + 1) * w];
+                    match s.step(step) {
+                        Some(v) => d.copy_from_slice(v),
+                        None => d.fill(0.0),
+                    }
+                }
+            } else {
+                write_term(term, inputs, pooled, dst, &mut lidar_noise);
+            }
+            k += n;
+        }
+        *written = true;
+    }
+}
+
+/// Writes a term that is not a history.
+fn write_term(
+    term: &ObsTerm,
+    inputs: &ObservationInputs,
+    pooled: &mut [f32],
+    out: &mut [f32],
+    lidar_noise: &mut impl FnMut() -> f32,
+) {
+    match term {
+        ObsTerm::Lidar { beams, clip } => {
+            let pooled = &mut pooled[..*beams];
+            min_pool(inputs.ranges, pooled);
+            for (o, r) in out.iter_mut().zip(pooled.iter()) {
+                // +inf (no return) clips to the far end.
+                *o = (r.min(clip[1]) + lidar_noise()).clamp(clip[0], clip[1]);
+            }
+        }
+        ObsTerm::GoalDistance => out[0] = inputs.goal_distance,
+        ObsTerm::GoalBearing => out[0] = inputs.goal_bearing,
+        ObsTerm::LastLinear => out[0] = inputs.last_command.linear,
+        ObsTerm::LastAngular => out[0] = inputs.last_command.angular,
+        ObsTerm::Linear => out[0] = inputs.velocity.linear,
+        ObsTerm::Lateral => out[0] = inputs.lateral_velocity,
+        ObsTerm::Angular => out[0] = inputs.velocity.angular,
+        ObsTerm::History { .. } => unreachable!("histories of histories are refused by ObservationLayout::check"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{from_yaml_str, to_yaml_string};
+
+    fn inputs(ranges: &[f32], d: f32, b: f32) -> ObservationInputs<'_> {
+        ObservationInputs {
+            ranges,
+            goal_distance: d,
+            goal_bearing: b,
+            last_command: Twist::new(0.3, -0.2),
+            velocity: Twist::new(0.25, 0.1),
+            lateral_velocity: -0.05,
+        }
+    }
+
+    fn history(term: ObsTerm, steps: usize, order: HistoryOrder, fill: HistoryFill) -> ObsTerm {
+        ObsTerm::History { term: Box::new(term), steps, order, fill }
+    }
+
+    #[test]
+    fn histories_read_and_write_as_yaml() {
+        let text = "- lidar: {beams: 4, clip: [0.1, 2.0]}\n\
+                    - history: {term: goal_bearing, steps: 5, order: oldest_first}\n\
+                    - history: {term: goal_distance, steps: 3, order: newest_first, fill: zero}\n\
+                    - history: {term: {lidar: {beams: 2, clip: [0.1, 2.0]}}, steps: 2, order: oldest_first}\n\
+                    - linear\n- lateral\n- angular\n";
+        let l: ObservationLayout = from_yaml_str("t.yaml", text).unwrap();
+        assert_eq!(l.len(), 4 + 5 + 3 + 4 + 3);
+        assert_eq!(l.0[1], history(ObsTerm::GoalBearing, 5, HistoryOrder::OldestFirst, HistoryFill::First));
+        assert_eq!(l.0[2], history(ObsTerm::GoalDistance, 3, HistoryOrder::NewestFirst, HistoryFill::Zero));
+        assert_eq!(l.lidar_terms().map(|(_, b)| b).collect::<Vec<_>>(), vec![4, 2]);
+        let back: ObservationLayout = from_yaml_str("back.yaml", &to_yaml_string(&l)).unwrap();
+        assert_eq!(back, l);
+        assert_eq!(l.spans().map(|(k, _)| k).collect::<Vec<_>>(), vec![0, 4, 9, 12, 16, 17, 18]);
+    }
+
+    #[test]
+    fn bad_histories_are_refused_with_their_key() {
+        for (text, key) in [
+            ("- history: {term: goal_bearing, steps: 0, order: oldest_first}", "observation[0].history.steps"),
+            (
+                "- linear\n- history: {term: {history: {term: linear, steps: 2, order: oldest_first}}, steps: 2, \
+                 order: oldest_first}",
+                "observation[1].history.term",
+            ),
+            (
+                "- history: {term: {lidar: {beams: 0, clip: [0.1, 2.0]}}, steps: 2, order: oldest_first}",
+                "observation[0].history.term.lidar.beams",
+            ),
+        ] {
+            let e = from_yaml_str::<ObservationLayout>("bad.yaml", text).unwrap_err().to_string();
+            assert!(e.contains("bad.yaml") && e.contains(key), "{e}");
+        }
+        // The order is part of the contract: never guessed.
+        let e = from_yaml_str::<ObservationLayout>("o.yaml", "- history: {term: goal_bearing, steps: 5}")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("order"), "{e}");
+    }
+
+    #[test]
+    fn plain_terms_are_written_in_layout_order() {
+        let layout = ObservationLayout(vec![
+            ObsTerm::Lidar { beams: 2, clip: [0.2, 1.5] },
+            ObsTerm::GoalDistance,
+            ObsTerm::GoalBearing,
+            ObsTerm::LastLinear,
+            ObsTerm::LastAngular,
+            ObsTerm::Linear,
+            ObsTerm::Lateral,
+            ObsTerm::Angular,
+        ]);
+        let mut b = ObservationBuilder::new(&layout);
+        let mut out = vec![0.0; layout.len()];
+        b.write(&inputs(&[0.1, 0.9, f32::INFINITY, 1.0], 2.0, 0.5), &mut out, || 0.0);
+        assert_eq!(out, vec![0.2, 1.0, 2.0, 0.5, 0.3, -0.2, 0.25, -0.05, 0.1]);
+    }
+
+    #[test]
+    fn histories_keep_the_last_steps_in_their_order() {
+        let layout = ObservationLayout(vec![
+            history(ObsTerm::GoalBearing, 4, HistoryOrder::OldestFirst, HistoryFill::First),
+            history(ObsTerm::GoalDistance, 3, HistoryOrder::NewestFirst, HistoryFill::Zero),
+            history(ObsTerm::Lidar { beams: 2, clip: [0.0, 10.0] }, 2, HistoryOrder::OldestFirst, HistoryFill::First),
+        ]);
+        let mut b = ObservationBuilder::new(&layout);
+        assert!(b.has_history());
+        let mut out = vec![0.0; layout.len()];
+        let step = |b: &mut ObservationBuilder, out: &mut [f32], i: f32| {
+            let ranges = [i, 50.0, 6.0, 10.0 + i];
+            b.write(&inputs(&ranges, 10.0 + i, i), out, || 0.0);
+        };
+        step(&mut b, &mut out, 1.0);
+        // Before the episode: the first value (bearing, lidar) or zeros (distance).
+        assert_eq!(out, vec![1.0, 1.0, 1.0, 1.0, 11.0, 0.0, 0.0, 1.0, 6.0, 1.0, 6.0]);
+        // Writing again without a commit replaces the current step.
+        step(&mut b, &mut out, 2.0);
+        assert_eq!(&out[..4], &[2.0; 4]);
+        b.commit();
+        step(&mut b, &mut out, 3.0);
+        assert_eq!(out, vec![2.0, 2.0, 2.0, 3.0, 13.0, 12.0, 0.0, 2.0, 6.0, 3.0, 6.0]);
+        b.commit();
+        b.commit(); // nothing written since: stores nothing
+        for i in 4..=6 {
+            step(&mut b, &mut out, i as f32);
+            b.commit();
+        }
+        step(&mut b, &mut out, 7.0);
+        assert_eq!(out, vec![4.0, 5.0, 6.0, 7.0, 17.0, 16.0, 15.0, 6.0, 6.0, 7.0, 6.0]);
+        // A new episode forgets the past.
+        b.reset();
+        step(&mut b, &mut out, 9.0);
+        assert_eq!(out, vec![9.0, 9.0, 9.0, 9.0, 19.0, 0.0, 0.0, 9.0, 6.0, 9.0, 6.0]);
+    }
+
+    #[test]
+    fn lidar_noise_is_added_before_clipping() {
+        let layout = ObservationLayout(vec![ObsTerm::Lidar { beams: 3, clip: [0.5, 2.0] }]);
+        let mut b = ObservationBuilder::new(&layout);
+        let mut out = vec![0.0; 3];
+        let mut noise = [0.25, -1.0, 1.0].into_iter();
+        b.write(&inputs(&[1.0, 1.0, 1.0], 0.0, 0.0), &mut out, || noise.next().unwrap());
+        assert_eq!(out, vec![1.25, 0.5, 2.0]);
+    }
+}
