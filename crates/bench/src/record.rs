@@ -3,8 +3,8 @@
 //! `/odom`, `/tf`, `/cmd_vel`, `/goal_pose` and `/clock`, one message of each per control
 //! step, stamped with simulated time.
 
-use rlnav_ros2::msg::{self, Clock, RosMessage, to_cdr};
-use rlnav_ros2::sim_topics::{Frames, SimMessages};
+use rlnav_msgs::msg::{self, Clock, RosMessage, to_cdr};
+use rlnav_msgs::sim_topics::{Frames, SimMessages};
 use rlnav_sim::{Controller, EpisodeStats, NavEnv};
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -49,7 +49,13 @@ impl McapRecorder {
             std::fs::create_dir_all(dir).map_err(|e| err(format!("creating {}: {e}", dir.display())))?;
         }
         let f = File::create(file).map_err(|e| err(e.to_string()))?;
-        let opts = mcap::WriteOptions::new().profile("ros2").library(concat!("rlnav ", env!("CARGO_PKG_VERSION")));
+        // zstd chunks at a fast level, written on this thread (an episode's chunks are small).
+        let opts = mcap::WriteOptions::new()
+            .profile("ros2")
+            .library(concat!("rlnav ", env!("CARGO_PKG_VERSION")))
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_level(1)
+            .compression_threads(0);
         let writer = opts.create(BufWriter::new(f)).map_err(|e| err(e.to_string()))?;
         let mut r = Self { file: file.to_path_buf(), writer, channels: BTreeMap::new(), sequence: 0 };
         r.channel::<msg::LaserScan>("/scan", false, false)?;
@@ -164,6 +170,12 @@ mod tests {
             assert_eq!(per_topic.get(topic), Some(&steps), "{topic}");
         }
         assert_eq!(last_scan.unwrap().ranges, env.ranges());
+        let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary section");
+        assert!(!summary.chunk_indexes.is_empty());
+        assert!(summary.chunk_indexes.iter().all(|c| c.compression == "zstd"), "zstd chunks");
+        let raw: u64 = summary.chunk_indexes.iter().map(|c| c.uncompressed_size).sum();
+        let packed: u64 = summary.chunk_indexes.iter().map(|c| c.compressed_size).sum();
+        assert!(packed * 2 < raw, "compressed {packed} of {raw} bytes");
         std::fs::remove_dir_all(dir).ok();
     }
 }
