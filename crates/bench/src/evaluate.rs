@@ -4,50 +4,12 @@
 use rayon::prelude::*;
 use rlnav_sim::task::{EnvSetup, SimError};
 use rlnav_sim::vec_env::env_seed;
-use rlnav_sim::{Controller, EpisodeStats, NavEnv, Outcome};
+use rlnav_sim::{Controller, EpisodeStats, NavEnv};
 use serde::Serialize;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Aggregate figures over episodes.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct EvalSummary {
-    /// Episodes run.
-    pub episodes: usize,
-    /// Share that reached the goal.
-    pub success_rate: f32,
-    /// Share that collided.
-    pub collision_rate: f32,
-    /// Share that ran out of time.
-    pub timeout_rate: f32,
-    /// Mean time to the goal over successful episodes (s; NaN without any).
-    pub mean_task_time: f32,
-    /// Mean over episodes of the smallest lidar range seen (m).
-    pub mean_min_range: f32,
-    /// Mean over episodes of the mean linear speed (m/s).
-    pub mean_speed: f32,
-    /// Mean path length (m).
-    pub mean_path_length: f32,
-}
-
-impl EvalSummary {
-    /// The summary of these episodes.
-    pub fn of(eps: &[EpisodeStats]) -> Self {
-        let n = eps.len().max(1) as f32;
-        let rate = |o: Outcome| eps.iter().filter(|e| e.outcome == o).count() as f32 / n;
-        let mean = |f: &dyn Fn(&EpisodeStats) -> f32| eps.iter().map(f).sum::<f32>() / n;
-        let wins: Vec<f32> = eps.iter().filter(|e| e.outcome == Outcome::Success).map(|e| e.time).collect();
-        Self {
-            episodes: eps.len(),
-            success_rate: rate(Outcome::Success),
-            collision_rate: rate(Outcome::Collision),
-            timeout_rate: rate(Outcome::Timeout),
-            mean_task_time: if wins.is_empty() { f32::NAN } else { wins.iter().sum::<f32>() / wins.len() as f32 },
-            mean_min_range: mean(&|e| if e.min_range.is_finite() { e.min_range } else { 0.0 }),
-            mean_speed: mean(&|e| e.mean_speed),
-            mean_path_length: mean(&|e| e.path_length),
-        }
-    }
-}
+pub use rlnav_sim::EvalSummary;
 
 /// One episode step by step: after each control step, the time, the position, the distance to
 /// the goal and the smallest lidar range (step 0 is the start).
@@ -84,7 +46,8 @@ pub fn traced_episode(env: &mut NavEnv, c: &mut dyn Controller) -> (EpisodeStats
 /// Runs `episodes` episodes of `setup`, episode `k` seeded with `env_seed(seed, k)` (so the
 /// same seed gives the same scenes to every controller, whatever the thread count), each
 /// worker with its own controller from `make`; with `record`, episode `k` is also written to
-/// `record/episode_KKK.mcap`. Returns the summary, every episode's figures and its trace.
+/// `record/episode_KKK.mcap`. `progress` hears the count of finished episodes (from any
+/// worker). Returns the summary, every episode's figures and its trace.
 pub fn evaluate_controller<E: std::fmt::Display + Send>(
     setup: Arc<EnvSetup>,
     make: impl Fn() -> Result<Box<dyn Controller>, E> + Sync,
@@ -92,7 +55,9 @@ pub fn evaluate_controller<E: std::fmt::Display + Send>(
     seed: u64,
     threads: usize,
     record: Option<&std::path::Path>,
+    progress: &(dyn Fn(usize) + Sync),
 ) -> Result<(EvalSummary, Vec<EpisodeStats>, Vec<EpisodeTrace>), String> {
+    let finished = AtomicUsize::new(0);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("thread pool: {e}"))?;
     let runs: Result<Vec<(EpisodeStats, EpisodeTrace)>, String> = pool.install(|| {
         (0..episodes)
@@ -102,13 +67,15 @@ pub fn evaluate_controller<E: std::fmt::Display + Send>(
                 |c, k| {
                     let c = c.as_mut().map_err(|e| e.clone())?;
                     let mut env = NavEnv::new(setup.clone(), env_seed(seed, k)).map_err(|e: SimError| e.to_string())?;
-                    match record {
+                    let run = match record {
                         Some(dir) => {
                             let file = dir.join(format!("episode_{k:03}.mcap"));
-                            crate::record::recorded_episode(&mut env, c.as_mut(), &file).map_err(|e| e.to_string())
+                            crate::record::recorded_episode(&mut env, c.as_mut(), &file).map_err(|e| e.to_string())?
                         }
-                        None => Ok(traced_episode(&mut env, c.as_mut())),
-                    }
+                        None => traced_episode(&mut env, c.as_mut()),
+                    };
+                    progress(finished.fetch_add(1, Ordering::Relaxed) + 1);
+                    Ok(run)
                 },
             )
             .collect()
@@ -140,7 +107,8 @@ pub struct PolicyEvaluation {
 /// `robot` (default: the contract's robot when it is a preset, else the scenario's). The task
 /// is rlnav's default run at the policy's control period and with its action limits, so that
 /// the simulator clips nothing the policy may command. The model, the contract and the robot's
-/// lidar are checked before any episode.
+/// lidar are checked before any episode. `progress` hears the count of finished episodes.
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate_policy(
     policy: &std::path::Path,
     contract: Option<&std::path::Path>,
@@ -149,6 +117,7 @@ pub fn evaluate_policy(
     episodes: usize,
     seed: u64,
     threads: usize,
+    progress: &(dyn Fn(usize) + Sync),
 ) -> Result<PolicyEvaluation, crate::suite::BenchError> {
     use crate::suite::BenchError;
     use rlnav_policy::PolicyRunner;
@@ -180,6 +149,7 @@ pub fn evaluate_policy(
         seed,
         threads,
         None,
+        progress,
     )
     .map_err(BenchError::Run)?;
     Ok(PolicyEvaluation {

@@ -12,7 +12,9 @@
 //! - [`movers`] and [`people`]: moving obstacles, and pedestrians that avoid each other (ORCA);
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
 //!   [`placement`]: start/goal candidates listed once per fixed map world;
-//! - [`task`]: the navigation task (observation layout, action scaling, reward, termination);
+//! - [`observation`]: the observation layout ([`ObservationLayout`]) and the builder that the
+//!   simulator and deployed policies share;
+//! - [`task`]: the navigation task (observation, action scaling, reward, termination);
 //! - [`vec_env`]: [`VecEnv`], N environments stepped in parallel;
 //! - [`controller`]: the [`Controller`] trait that joins evaluation, benchmark and deployment.
 //!
@@ -40,6 +42,7 @@ pub mod geometry;
 pub mod lidar;
 pub mod map;
 pub mod movers;
+pub mod observation;
 pub mod people;
 pub mod placement;
 pub mod reachability;
@@ -57,6 +60,6 @@ pub use geometry::{Pose2, Vec2, wrap_angle};
 pub use lidar::{Lidar, LidarSpec};
 pub use robot::{DiffDrive, Footprint, RobotSpec};
 pub use scenario::{Scenario, ScenarioSpec};
-pub use task::{EpisodeStats, NavEnv, ObservationLayout, Outcome, TaskConfig};
+pub use task::{EpisodeStats, EvalSummary, NavEnv, ObservationLayout, Outcome, TaskConfig};
 pub use vec_env::VecEnv;
 pub use world::World;

@@ -4,8 +4,10 @@
 use crate::config::{ConfigError, Invalid, Validate, check_interval, check_positive, check_range, from_yaml_file};
 use crate::controller::{Controller, LaserScan, RobotObservation, Twist};
 use crate::geometry::{Pose2, Vec2, wrap_angle};
-use crate::lidar::{Lidar, RayGeometry, min_pool};
+use crate::lidar::{Lidar, RayGeometry};
 use crate::movers::Mover;
+pub use crate::observation::{HistoryFill, HistoryOrder, ObsTerm, ObservationLayout};
+use crate::observation::{ObservationBuilder, ObservationInputs};
 use crate::people::{Crowd, Person};
 use crate::robot::{DiffDrive, DriveParams, Footprint, RobotSpec};
 use crate::scenario::{NoEpisode, Scenario, ScenarioSpec};
@@ -16,78 +18,6 @@ use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::Arc;
-
-/// One term of the observation vector.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-pub enum ObsTerm {
-    /// Lidar ranges, min-pooled from the robot's beams down to `beams` (which must divide the
-    /// robot's beam count), clipped to `clip`; a beam with no return reads `clip[1]`.
-    Lidar {
-        /// Values after pooling.
-        beams: usize,
-        /// `[min, max]` (m).
-        clip: [f32; 2],
-    },
-    /// Distance to the goal (m).
-    GoalDistance,
-    /// Bearing of the goal in the robot frame (rad, (-π, π]).
-    GoalBearing,
-    /// The previous command's linear velocity (m/s).
-    LastLinear,
-    /// The previous command's angular velocity (rad/s).
-    LastAngular,
-    /// Measured linear velocity (m/s), as odometry reports it.
-    Linear,
-    /// Measured angular velocity (rad/s).
-    Angular,
-}
-
-impl ObsTerm {
-    /// Number of values this term contributes.
-    pub fn len(&self) -> usize {
-        match self {
-            ObsTerm::Lidar { beams, .. } => *beams,
-            _ => 1,
-        }
-    }
-
-    /// Whether the term contributes nothing (never: kept for the `len` convention).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
-
-/// The observation vector's layout: an ordered list of terms. Data, not code, so that other
-/// layouts (the seed policies', stacked frames...) are configuration.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(transparent)]
-pub struct ObservationLayout(pub Vec<ObsTerm>);
-
-impl Default for ObservationLayout {
-    /// The article's `[L_t (120 ranges, 0.15-3 m), d_t, θ_t, v_{t-1}, ω_{t-1}]`: 124 values.
-    fn default() -> Self {
-        ObservationLayout(vec![
-            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
-            ObsTerm::GoalDistance,
-            ObsTerm::GoalBearing,
-            ObsTerm::LastLinear,
-            ObsTerm::LastAngular,
-        ])
-    }
-}
-
-impl ObservationLayout {
-    /// Length of the observation vector.
-    pub fn len(&self) -> usize {
-        self.0.iter().map(ObsTerm::len).sum()
-    }
-
-    /// Whether the layout is empty.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
 
 /// How the policy's action in `[-1, 1]²` maps to a velocity command.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -284,18 +214,7 @@ impl Validate for TaskConfig {
         check_range("reward.social", r.social, 0.0, 1e4)?;
         check_range("reward.social_radius", r.social_radius, 0.01, 100.0)?;
         self.randomization.validate()?;
-        for (i, t) in self.observation.0.iter().enumerate() {
-            if let ObsTerm::Lidar { beams, clip } = t {
-                if *beams == 0 {
-                    return Err(Invalid::new(format!("observation[{i}].lidar.beams"), "at least 1"));
-                }
-                check_interval(&format!("observation[{i}].lidar.clip"), *clip, 0.0, 1000.0)?;
-            }
-        }
-        if self.observation.is_empty() {
-            return Err(Invalid::new("observation", "at least one term"));
-        }
-        Ok(())
+        self.observation.check()
     }
 }
 
@@ -348,6 +267,66 @@ pub struct EpisodeStats {
     /// Smallest gap between the robot's circumscribed circle and a person (m; +inf without
     /// people).
     pub min_person_gap: f32,
+}
+
+/// What a set of finished episodes measured: the rates and means that training's periodic
+/// evaluations, `rlnav eval` and `rlnav bench` all report.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct EvalSummary {
+    /// Episodes run.
+    pub episodes: usize,
+    /// Share that reached the goal.
+    pub success_rate: f32,
+    /// Share that collided.
+    pub collision_rate: f32,
+    /// Share that ran out of time.
+    pub timeout_rate: f32,
+    /// Mean return.
+    #[serde(default)]
+    pub mean_return: f32,
+    /// Mean time to the goal over successful episodes (s; NaN without any, `null` in JSON).
+    /// Files written before this name read their `mean_success_time`.
+    #[serde(alias = "mean_success_time", default = "nan", deserialize_with = "null_as_nan")]
+    pub mean_task_time: f32,
+    /// Mean over episodes of the smallest lidar range seen (m; a scan with no return counts 0).
+    #[serde(default)]
+    pub mean_min_range: f32,
+    /// Mean over episodes of the mean linear speed (m/s).
+    #[serde(default)]
+    pub mean_speed: f32,
+    /// Mean path length (m).
+    #[serde(default)]
+    pub mean_path_length: f32,
+}
+
+fn nan() -> f32 {
+    f32::NAN
+}
+
+/// JSON has no NaN: serde_json writes it as `null`, which reads back as NaN.
+fn null_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    Ok(Option::<f32>::deserialize(d)?.unwrap_or(f32::NAN))
+}
+
+impl EvalSummary {
+    /// The summary of these episodes.
+    pub fn of(eps: &[EpisodeStats]) -> Self {
+        let n = eps.len().max(1) as f32;
+        let rate = |o: Outcome| eps.iter().filter(|e| e.outcome == o).count() as f32 / n;
+        let mean = |f: &dyn Fn(&EpisodeStats) -> f32| eps.iter().map(f).sum::<f32>() / n;
+        let wins: Vec<f32> = eps.iter().filter(|e| e.outcome == Outcome::Success).map(|e| e.time).collect();
+        Self {
+            episodes: eps.len(),
+            success_rate: rate(Outcome::Success),
+            collision_rate: rate(Outcome::Collision),
+            timeout_rate: rate(Outcome::Timeout),
+            mean_return: mean(&|e| e.episode_return),
+            mean_task_time: if wins.is_empty() { f32::NAN } else { wins.iter().sum::<f32>() / wins.len() as f32 },
+            mean_min_range: mean(&|e| if e.min_range.is_finite() { e.min_range } else { 0.0 }),
+            mean_speed: mean(&|e| e.mean_speed),
+            mean_path_length: mean(&|e| e.path_length),
+        }
+    }
 }
 
 /// What the environment reports after each control step.
@@ -403,14 +382,14 @@ impl EnvSetup {
         task.validate().map_err(|e| e.in_file("<task>"))?;
         robot.validate().map_err(|e| e.in_file(&format!("<robot {}>", robot.name)))?;
         let beams = robot.lidar.beams;
-        for t in &task.observation.0 {
-            if let ObsTerm::Lidar { beams: b, .. } = t {
-                if beams % b != 0 {
-                    return Err(SimError::Incompatible {
-                        robot: robot.name.clone(),
-                        message: format!("lidar term wants {b} beams, which does not divide the robot's {beams}"),
-                    });
-                }
+        for (key, b) in task.observation.lidar_terms() {
+            if beams % b != 0 {
+                return Err(SimError::Incompatible {
+                    robot: robot.name.clone(),
+                    message: format!(
+                        "{key}: the lidar term wants {b} beams, which does not divide the robot's {beams}"
+                    ),
+                });
             }
         }
         let footprint = robot.footprint();
@@ -457,7 +436,10 @@ pub struct NavEnv {
     steps: u32,
     ranges: Vec<f32>,
     dirs: Vec<Vec2>,
-    pooled: Vec<f32>,
+    /// Writes the task's observation and keeps its history terms' past.
+    observer: ObservationBuilder,
+    /// An observation written only to record a step's history (see `step_twist`).
+    scratch: Vec<f32>,
     min_range: f32,
     episode_return: f32,
     speed_sum: f32,
@@ -480,14 +462,8 @@ impl NavEnv {
     /// An environment with its own random stream, already reset.
     pub fn new(setup: Arc<EnvSetup>, seed: u64) -> Result<Self, SimError> {
         let n = setup.lidar.beams();
-        let max_pool = setup
-            .task
-            .observation
-            .0
-            .iter()
-            .filter_map(|t| if let ObsTerm::Lidar { beams, .. } = t { Some(*beams) } else { None })
-            .max()
-            .unwrap_or(0);
+        let observer = ObservationBuilder::new(&setup.task.observation);
+        let scratch = if observer.has_history() { vec![0.0; setup.obs_dim] } else { Vec::new() };
         let drive = DiffDrive::new(DriveParams::from(&setup.robot), Pose2::default());
         let mut env = Self {
             rng: Pcg64Mcg::seed_from_u64(seed),
@@ -499,7 +475,8 @@ impl NavEnv {
             steps: 0,
             ranges: vec![f32::INFINITY; n],
             dirs: vec![Vec2::ZERO; n],
-            pooled: vec![0.0; max_pool],
+            observer,
+            scratch,
             min_range: f32::INFINITY,
             episode_return: 0.0,
             speed_sum: 0.0,
@@ -562,6 +539,7 @@ impl NavEnv {
         self.path_length = 0.0;
         let radius = self.setup.footprint.radius();
         self.min_person_gap = self.crowd.min_gap(self.drive.pose.position(), radius);
+        self.observer.reset();
         self.scan();
         self.min_range = self.current_min_range();
         Ok(())
@@ -601,6 +579,17 @@ impl NavEnv {
 
     /// Applies a velocity command (clipped to the task's action ranges) for one control period.
     pub fn step_twist(&mut self, cmd: Twist) -> StepOutcome {
+        if self.observer.has_history() {
+            // The history records the observation of the step being taken, as written for the
+            // policy; one that was never written (a `Controller` driving) is written now. Only
+            // layouts with a history draw observation noise here.
+            if !self.observer.is_written() {
+                let mut scratch = std::mem::take(&mut self.scratch);
+                self.write_observation(&mut scratch);
+                self.scratch = scratch;
+            }
+            self.observer.commit();
+        }
         let setup = Arc::clone(&self.setup);
         let task = &setup.task;
         let a = &task.action;
@@ -698,7 +687,9 @@ impl NavEnv {
         }
     }
 
-    /// Writes the observation vector (layout of the task) into `out`.
+    /// Writes the observation vector (layout of the task) into `out`. A layout with history
+    /// terms shows the values written at the previous steps of the episode (or, for a step
+    /// taken without a write, the values it would have written).
     pub fn write_observation(&mut self, out: &mut [f32]) {
         let (mut dist, mut bearing) = self.goal_polar();
         let dr = &self.setup.task.randomization;
@@ -709,34 +700,19 @@ impl NavEnv {
             bearing = wrap_angle(bearing + dr.obs_goal_bearing_std * self.rng.sample::<f32, _>(StandardNormal));
         }
         let lidar_std = dr.obs_lidar_std;
-        let mut k = 0;
-        for term in &self.setup.task.observation.0 {
-            match term {
-                ObsTerm::Lidar { beams, clip } => {
-                    let pooled = &mut self.pooled[..*beams];
-                    min_pool(&self.ranges, pooled);
-                    for (o, r) in out[k..k + beams].iter_mut().zip(pooled.iter()) {
-                        // +inf (no return) clips to the far end; NaN never occurs in simulation.
-                        let noise =
-                            if lidar_std > 0.0 { lidar_std * self.rng.sample::<f32, _>(StandardNormal) } else { 0.0 };
-                        *o = (r.min(clip[1]) + noise).clamp(clip[0], clip[1]);
-                    }
-                    k += beams;
-                }
-                other => {
-                    out[k] = match other {
-                        ObsTerm::GoalDistance => dist,
-                        ObsTerm::GoalBearing => bearing,
-                        ObsTerm::LastLinear => self.last_command.linear,
-                        ObsTerm::LastAngular => self.last_command.angular,
-                        ObsTerm::Linear => self.drive.velocity.linear,
-                        ObsTerm::Angular => self.drive.velocity.angular,
-                        ObsTerm::Lidar { .. } => unreachable!(),
-                    };
-                    k += 1;
-                }
-            }
-        }
+        let inputs = ObservationInputs {
+            ranges: &self.ranges,
+            goal_distance: dist,
+            goal_bearing: bearing,
+            last_command: self.last_command,
+            velocity: self.drive.velocity,
+            // A differential drive does not slide sideways.
+            lateral_velocity: 0.0,
+        };
+        let rng = &mut self.rng;
+        self.observer.write(&inputs, out, || {
+            if lidar_std > 0.0 { lidar_std * rng.sample::<f32, _>(StandardNormal) } else { 0.0 }
+        });
     }
 
     /// Goal distance and bearing in the robot frame.
@@ -754,6 +730,7 @@ impl NavEnv {
         out.scan_mount = spec.mount;
         out.pose = self.drive.pose;
         out.velocity = self.drive.velocity;
+        out.lateral_velocity = 0.0;
         out.goal = self.goal;
         out.last_command = self.last_command;
         out.time = self.steps as f32 * self.setup.task.control_period;
@@ -944,5 +921,44 @@ mod tests {
         env.step([1.0, 1.0]);
         env.write_observation(&mut obs);
         assert_eq!((obs[122], obs[123]), (0.5, 0.5));
+    }
+
+    #[test]
+    fn history_terms_show_the_steps_taken() {
+        let layout = ObservationLayout(vec![
+            ObsTerm::History {
+                term: Box::new(ObsTerm::GoalDistance),
+                steps: 3,
+                order: HistoryOrder::OldestFirst,
+                fill: HistoryFill::First,
+            },
+            ObsTerm::History {
+                term: Box::new(ObsTerm::Linear),
+                steps: 2,
+                order: HistoryOrder::NewestFirst,
+                fill: HistoryFill::Zero,
+            },
+            ObsTerm::Lateral,
+        ]);
+        let spec = ScenarioSpec::load("static-room").unwrap();
+        let robot = RobotSpec::load(&spec.robot).unwrap();
+        let task = TaskConfig { observation: layout, ..Default::default() };
+        let mut env = NavEnv::new(Arc::new(EnvSetup::new(spec, robot, task).unwrap()), 11).unwrap();
+        let mut obs = vec![0.0; 6];
+        let mut seen = vec![(env.goal_polar().0, env.velocity().linear)];
+        env.write_observation(&mut obs);
+        assert_eq!(obs, vec![seen[0].0, seen[0].0, seen[0].0, 0.0, 0.0, 0.0]);
+        // A step taken without a write (a controller driving) is recorded all the same.
+        for _ in 0..2 {
+            env.step_twist(Twist::new(0.3, 0.2));
+            seen.push((env.goal_polar().0, env.velocity().linear));
+        }
+        env.write_observation(&mut obs);
+        assert!(seen[2].1 > 0.0);
+        assert_eq!(obs, vec![seen[0].0, seen[1].0, seen[2].0, seen[2].1, seen[1].1, 0.0]);
+        env.reset().unwrap();
+        env.write_observation(&mut obs);
+        let d = env.goal_polar().0;
+        assert_eq!(obs, vec![d, d, d, 0.0, 0.0, 0.0]);
     }
 }

@@ -2,48 +2,14 @@
 //! environment running the same number of episodes so that short episodes are not favoured.
 
 use crate::ppo::Ppo;
-use rlnav_sim::task::{EnvSetup, EpisodeStats, Outcome, SimError};
+pub use rlnav_sim::task::EvalSummary;
+use rlnav_sim::task::{EnvSetup, EpisodeStats, SimError};
 use rlnav_sim::vec_env::VecEnv;
-use serde::{Deserialize, Serialize};
 use std::sync::Arc;
-
-/// Aggregate results of an evaluation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct EvalResult {
-    /// Episodes run.
-    pub episodes: usize,
-    /// Fraction that reached the goal.
-    pub success_rate: f32,
-    /// Fraction that collided.
-    pub collision_rate: f32,
-    /// Fraction that timed out.
-    pub timeout_rate: f32,
-    /// Mean return.
-    pub mean_return: f32,
-    /// Mean time of successful episodes (s).
-    pub mean_success_time: f32,
-}
-
-impl EvalResult {
-    /// Aggregates episode statistics.
-    pub fn from_episodes(eps: &[EpisodeStats]) -> Self {
-        let n = eps.len().max(1) as f32;
-        let rate = |o: Outcome| eps.iter().filter(|e| e.outcome == o).count() as f32 / n;
-        let succ: Vec<_> = eps.iter().filter(|e| e.outcome == Outcome::Success).collect();
-        Self {
-            episodes: eps.len(),
-            success_rate: rate(Outcome::Success),
-            collision_rate: rate(Outcome::Collision),
-            timeout_rate: rate(Outcome::Timeout),
-            mean_return: eps.iter().map(|e| e.episode_return).sum::<f32>() / n,
-            mean_success_time: succ.iter().map(|e| e.time).sum::<f32>() / succ.len().max(1) as f32,
-        }
-    }
-}
 
 /// Runs `episodes` episodes (`envs` at a time, `episodes / envs` each) of the learner's
 /// deterministic policy. `seed` should differ from the training seeds so that procedurally
-/// generated scenes are new to the policy.
+/// generated scenes are new to the policy. `progress` hears the count of finished episodes.
 pub fn evaluate(
     ppo: &Ppo,
     setup: Arc<EnvSetup>,
@@ -51,7 +17,8 @@ pub fn evaluate(
     envs: usize,
     seed: u64,
     threads: usize,
-) -> Result<(EvalResult, Vec<EpisodeStats>), SimError> {
+    progress: &mut dyn FnMut(usize),
+) -> Result<(EvalSummary, Vec<EpisodeStats>), SimError> {
     let mut venv = VecEnv::new(setup, envs, seed, threads)?;
     let quota = episodes / envs;
     let mut done = vec![0usize; envs];
@@ -73,6 +40,7 @@ pub fn evaluate(
                 if done[e] < quota {
                     results.push(s);
                     done[e] += 1;
+                    progress(results.len());
                 }
                 if let Some((c, h)) = &mut state {
                     c[e * units..(e + 1) * units].fill(0.0);
@@ -81,5 +49,5 @@ pub fn evaluate(
             }
         }
     }
-    Ok((EvalResult::from_episodes(&results), results))
+    Ok((EvalSummary::of(&results), results))
 }

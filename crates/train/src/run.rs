@@ -2,7 +2,7 @@
 //! unseen scenes, checkpoints, and the run folder's logs.
 
 use crate::config::{RunConfig, StageConfig, apply_task_overrides};
-use crate::eval::{EvalResult, evaluate};
+use crate::eval::{EvalSummary, evaluate};
 use crate::ppo::{Ppo, UpdateStats};
 use burn::optim::AdamConfig;
 use burn::store::{BurnpackStore, ModuleSnapshot};
@@ -91,7 +91,7 @@ pub struct EpochReport {
     /// Seconds spent updating the network this epoch.
     pub update_s: f64,
     /// Evaluation, when one ran after this epoch.
-    pub eval: Option<EvalResult>,
+    pub eval: Option<EvalSummary>,
 }
 
 /// When the periodic evaluation first reached a success rate: the cost of getting there.
@@ -125,11 +125,11 @@ pub struct Summary {
     /// The final test: the best checkpoint (chosen by the periodic evaluations) evaluated on
     /// `eval.episodes` fresh episodes, drawn from a seed neither training nor model selection
     /// used.
-    pub final_eval: Option<EvalResult>,
+    pub final_eval: Option<EvalSummary>,
     /// Epoch of the checkpoint the final test ran on.
     pub final_epoch: usize,
     /// The periodic evaluation after the last epoch (on the selection seed).
-    pub last_epoch_eval: Option<EvalResult>,
+    pub last_epoch_eval: Option<EvalSummary>,
     /// Scenario of the final evaluation.
     pub eval_scenario: String,
     /// Best evaluation success rate seen, and its epoch.
@@ -349,6 +349,39 @@ fn csv_row(r: &EpochReport) -> String {
     )
 }
 
+/// Keeps metrics.csv's header and its rows up to `epoch` (the checkpoint's), rewriting the
+/// file atomically when anything goes: rows a killed session wrote after its last checkpoint,
+/// and a last line it left half-written. A row whose first column is not an epoch number is
+/// an error naming its line.
+fn trim_metrics(path: &Path, epoch: usize) -> Result<(), TrainError> {
+    let text = fs::read_to_string(path).map_err(|e| io_err(path, e))?;
+    let mut lines = text.split_inclusive('\n');
+    let mut kept = String::with_capacity(text.len());
+    match lines.next() {
+        Some(header) if header.ends_with('\n') => kept.push_str(header),
+        _ => return Err(io_err(path, "no header line")),
+    }
+    for (i, line) in lines.enumerate() {
+        if !line.ends_with('\n') {
+            break;
+        }
+        let row: usize =
+            line.split(',').next().and_then(|e| e.trim().parse().ok()).ok_or_else(|| TrainError::Resume {
+                path: format!("{}:{}", path.display(), i + 2),
+                message: "expected a row starting with its epoch number".into(),
+            })?;
+        if row <= epoch {
+            kept.push_str(line);
+        }
+    }
+    if kept.len() == text.len() {
+        return Ok(());
+    }
+    let tmp = path.with_extension("csv.tmp");
+    fs::write(&tmp, &kept).map_err(|e| io_err(&tmp, e))?;
+    fs::rename(&tmp, path).map_err(|e| io_err(path, e))
+}
+
 /// `base` if no run lives there yet, else the first free `base-2`, `base-3`, ... (so that
 /// running the default command twice starts a second run instead of failing).
 pub fn fresh_run_dir(base: &Path) -> PathBuf {
@@ -419,6 +452,18 @@ pub fn train(
         let ck = out.join("checkpoint");
         st = read_state(&ck)?;
         restore_checkpoint(&mut ppo, cfg, &ck, &st, true)?;
+        // A session killed after its last checkpoint logged epochs that this one runs again.
+        trim_metrics(&out.join("metrics.csv"), st.epoch)?;
+        let tb_dir = out.join("tensorboard");
+        crate::tensorboard::drop_events_after(&tb_dir, st.env_steps as i64).map_err(|e| io_err(&tb_dir, e))?;
+        // A `best/` saved after the checkpoint comes from those epochs, and it replaced the best
+        // the checkpoint knew of: the choice of the best starts afresh.
+        let best = out.join("best");
+        if best.join("state.json").is_file() && read_state(&best)?.epoch > st.epoch {
+            fs::remove_dir_all(&best).map_err(|e| io_err(&best, e))?;
+            st.best_success_rate = -1.0;
+            st.best_epoch = 0;
+        }
     } else {
         if out.join("config.yaml").exists() {
             return Err(TrainError::Io {
@@ -473,10 +518,18 @@ pub fn train(
         for e in &episodes {
             window.push(e.outcome == Outcome::Success);
         }
-        let stats = EvalResult::from_episodes(&episodes);
+        let stats = EvalSummary::of(&episodes);
         let eval_now = (cfg.eval.every > 0 && st.epoch % cfg.eval.every == 0) || st.epoch == cfg.train.max_epochs;
         let eval_result = if eval_now {
-            let (r, _) = evaluate(&ppo, eval.clone(), cfg.eval.episodes, cfg.eval.envs, eval_seed(cfg.seed), threads)?;
+            let (r, _) = evaluate(
+                &ppo,
+                eval.clone(),
+                cfg.eval.episodes,
+                cfg.eval.envs,
+                eval_seed(cfg.seed),
+                threads,
+                &mut |_| {},
+            )?;
             last_eval = Some(r);
             let reached = Milestone {
                 success_rate: r.success_rate,
@@ -579,7 +632,15 @@ pub fn train(
             ("checkpoint", st.epoch)
         };
         let (_, learner) = load_learner(out, which)?;
-        let (r, _) = evaluate(&learner, eval.clone(), cfg.eval.episodes, cfg.eval.envs, test_seed(cfg.seed), threads)?;
+        let (r, _) = evaluate(
+            &learner,
+            eval.clone(),
+            cfg.eval.episodes,
+            cfg.eval.envs,
+            test_seed(cfg.seed),
+            threads,
+            &mut |_| {},
+        )?;
         (Some(r), epoch)
     };
     let summary = Summary {
@@ -628,25 +689,27 @@ pub struct RunEvaluation {
     /// Seed of the episodes.
     pub seed: u64,
     /// Aggregate results.
-    pub summary: EvalResult,
+    pub summary: EvalSummary,
     /// Every episode.
     pub episodes: Vec<EpisodeStats>,
 }
 
 /// Evaluates a run's final checkpoint on `scenario` (default: the run's evaluation scenario)
-/// with the run's robot and task: `episodes` episodes, `envs` at a time.
+/// with the run's robot and task: `episodes` episodes, `envs` at a time; `progress` hears the
+/// count of finished episodes.
 pub fn evaluate_run(
     dir: &Path,
     scenario: Option<&str>,
     episodes: usize,
     envs: usize,
     seed: u64,
+    progress: &dyn Fn(usize),
 ) -> Result<RunEvaluation, TrainError> {
     let (cfg, ppo) = load_learner(dir, "checkpoint")?;
     let scenario = scenario.unwrap_or(&cfg.eval.scenario).to_string();
     let setup = env_setup(&cfg, &scenario, cfg.task.clone())?;
     let envs = envs.clamp(1, episodes.max(1));
     let episodes = episodes / envs * envs;
-    let (summary, episodes) = evaluate(&ppo, setup, episodes, envs, seed, cfg.train.threads)?;
+    let (summary, episodes) = evaluate(&ppo, setup, episodes, envs, seed, cfg.train.threads, &mut |n| progress(n))?;
     Ok(RunEvaluation { scenario, seed, summary, episodes })
 }

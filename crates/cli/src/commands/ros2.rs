@@ -1,0 +1,123 @@
+//! `rlnav ros2`: the policy node and the simulator bridge (pure Rust ROS 2).
+
+use super::stop_flag;
+use anyhow::Result;
+use clap::Subcommand;
+use rlnav_ros2::bridge::{BridgeOptions, SimBridge, bridge_setup, run_bridge};
+use rlnav_ros2::bus::{Reach, domain_from_env};
+use rlnav_ros2::node::{NodeParams, PolicyNode, run_node};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct DdsArgs {
+    /// DDS domain (default: ROS_DOMAIN_ID, else 0).
+    #[arg(long)]
+    domain: Option<u16>,
+    /// Talk over loopback only (also set by ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST).
+    #[arg(long)]
+    localhost: bool,
+}
+
+impl DdsArgs {
+    fn resolve(&self) -> Result<(u16, Reach)> {
+        let domain = match self.domain {
+            Some(d) => d,
+            None => domain_from_env()?,
+        };
+        let reach = if self.localhost { Reach::Localhost } else { Reach::from_env() };
+        Ok((domain, reach))
+    }
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Drive a robot with a policy: /scan and /odom (or a pose topic) in, /cmd_vel out, the
+    /// goal from --goal, the parameters or /goal_pose; state on /rlnav/status.
+    Node {
+        /// The policy (ONNX with its contract, e.g. policies/jetbot-static-mlp.onnx).
+        #[arg(long)]
+        policy: PathBuf,
+        /// A side contract for a policy file without one.
+        #[arg(long)]
+        contract: Option<PathBuf>,
+        /// Parameter YAML (topics, frames, limits, timeouts; flat or ROS 2's
+        /// `node: {ros__parameters: ...}`).
+        #[arg(long)]
+        params: Option<PathBuf>,
+        /// Goal X Y in the pose frame (overrides the parameters' goal).
+        #[arg(long, num_args = 2, value_names = ["X", "Y"], allow_negative_numbers = true)]
+        goal: Option<Vec<f64>>,
+        #[command(flatten)]
+        dds: DdsArgs,
+    },
+    /// Run a scenario as a ROS 2 robot: /scan, /odom, /tf, /tf_static, /clock and /goal_pose
+    /// out, /cmd_vel in. Prints each episode's figures as a JSON line.
+    Sim {
+        /// Scenario: a shipped name or a YAML file.
+        #[arg(long, default_value = "static-room")]
+        scenario: String,
+        /// Robot (default: the scenario's).
+        #[arg(long)]
+        robot: Option<String>,
+        /// Seed of the episodes.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Episodes to run, then exit (0: until Ctrl-C).
+        #[arg(long, default_value_t = 0)]
+        episodes: usize,
+        /// Simulated seconds per second (1: real time).
+        #[arg(long, default_value_t = 1.0)]
+        rate: f64,
+        /// /cmd_vel carries geometry_msgs/TwistStamped.
+        #[arg(long)]
+        cmd_vel_stamped: bool,
+        #[command(flatten)]
+        dds: DdsArgs,
+    },
+}
+
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Node { policy, contract, params, goal, dds } => {
+            let (domain, reach) = dds.resolve()?;
+            let mut p = match &params {
+                Some(f) => NodeParams::from_file(f)?,
+                None => NodeParams::default(),
+            };
+            if let Some(g) = goal {
+                p.goal = Some([g[0], g[1]]);
+            }
+            let runner = rlnav_policy::PolicyRunner::load(&policy, contract.as_deref())?;
+            let c = runner.contract();
+            eprintln!(
+                "rlnav_policy: {} ({} beams over [{:.2}, {:.2}] rad, every {:.3} s) on domain {domain}; {} -> {}",
+                policy.display(),
+                c.scan.beams,
+                c.scan.angle_min,
+                c.scan.angle_max,
+                c.control_period,
+                p.scan_topic,
+                p.cmd_vel_topic
+            );
+            let node = PolicyNode::new(runner, p);
+            run_node(node, domain, reach, stop_flag()?, |_, _| {})?;
+            Ok(())
+        }
+        Command::Sim { scenario, robot, seed, episodes, rate, cmd_vel_stamped, dds } => {
+            let (domain, reach) = dds.resolve()?;
+            anyhow::ensure!(rate.is_finite() && rate > 0.0, "--rate must be positive");
+            let setup = bridge_setup(&scenario, robot.as_deref())?;
+            let opts = BridgeOptions { seed, episodes, rate, cmd_vel_stamped, ..Default::default() };
+            eprintln!(
+                "rlnav_sim: {} with {} on domain {domain}, {rate}x real time",
+                setup.scenario.spec().name,
+                setup.robot.name
+            );
+            let bridge = SimBridge::new(setup, &opts)?;
+            run_bridge(bridge, &opts, domain, reach, stop_flag()?, |stats| {
+                println!("{}", serde_json::to_string(stats).unwrap_or_default());
+            })?;
+            Ok(())
+        }
+    }
+}
