@@ -6,9 +6,10 @@
 //! the scenario says otherwise: a robot should not drive or be placed where the map knows
 //! nothing.
 //!
-//! The lidar casts rays through the grid exactly (a ray stops where it enters the first
-//! blocked cell) and fast: in open space it jumps by the Chebyshev distance to the nearest
-//! blocked cell, and only walks cell by cell (Amanatides–Woo) near walls.
+//! A ray stops where it enters the first blocked cell. [`OccupancyGrid::cast`] walks one ray
+//! through the cells (jumping by the Chebyshev distance to the nearest blocked cell in open
+//! space, cell by cell near walls); the lidar instead casts all its beams at once against the
+//! blocked cells' outline ([`GridEdges`]), with the same answers, several times faster.
 
 use crate::config::{ConfigError, Invalid, Validate, check_positive, check_range};
 use crate::geometry::{Pose2, Rect, Vec2};
@@ -174,6 +175,8 @@ pub struct OccupancyGrid {
     not_free: Option<(Vec<bool>, Vec<u32>)>,
     /// `origin.yaw`'s sine and cosine (the cast is hot; `sin_cos` per ray cost a fifth of it).
     rot: (f32, f32),
+    /// The blocked cells' outline as segments, binned in tiles: what the lidar casts against.
+    edges: GridEdges,
 }
 
 impl OccupancyGrid {
@@ -291,7 +294,20 @@ impl OccupancyGrid {
             (not_free, cheb)
         });
         let rot = origin.yaw.sin_cos();
-        Self { source: source.to_string(), width, height, resolution, origin, cells, blocked, cheb, not_free, rot }
+        let edges = GridEdges::new(&blocked, width, height, resolution, &origin);
+        Self {
+            source: source.to_string(),
+            width,
+            height,
+            resolution,
+            origin,
+            cells,
+            blocked,
+            cheb,
+            not_free,
+            rot,
+            edges,
+        }
     }
 
     /// `(width, height)` in cells.
@@ -317,6 +333,16 @@ impl OccupancyGrid {
     /// Whether the cell at `(ix, iy)` stops rays and robots.
     pub fn is_blocked(&self, ix: usize, iy: usize) -> bool {
         self.blocked[iy * self.width + ix]
+    }
+
+    /// The outline of the blocked cells as segments (see [`GridEdges`]).
+    pub fn edges(&self) -> &GridEdges {
+        &self.edges
+    }
+
+    /// Whether `p` lies inside a blocked cell (a ray from there stops at once).
+    pub fn blocks(&self, p: Vec2) -> bool {
+        self.cell_of(p).is_some_and(|(x, y)| self.is_blocked(x, y))
     }
 
     /// The cell containing world point `p`, if inside the grid.
@@ -578,6 +604,147 @@ impl OccupancyGrid {
                 if t >= t1 {
                     return limit;
                 }
+            }
+        }
+    }
+}
+
+/// The boundary between blocked and open cells (outside the grid is open) as line segments in
+/// world coordinates, each oriented with its blocked side on the left (as a counter-clockwise
+/// polygon's edges), so that the lidar's segment caster sees them from the open side only.
+/// Collinear cell edges are merged into one segment up to a tile border; segments are binned by
+/// the tile of their blocked cells, so a scan only visits the tiles within its range.
+///
+/// A ray from open space stops where it first meets this outline, which is where it enters the
+/// first blocked cell: the same answer as [`OccupancyGrid::cast`]'s cell walk, at the cost of
+/// the polygon caster (a few segments per beam near the robot) instead of a walk per beam.
+#[derive(Clone, Debug, Default)]
+pub struct GridEdges {
+    /// `(a, b)` in world coordinates, grouped by tile (row-major).
+    segments: Vec<(Vec2, Vec2)>,
+    /// Tile `t`'s segments are `segments[tile_start[t]..tile_start[t + 1]]`.
+    tile_start: Vec<u32>,
+    tiles_x: usize,
+    tiles_y: usize,
+    /// The grid's pose, cell size and `origin.yaw`'s sine and cosine, to find tiles.
+    origin: Pose2,
+    resolution: f32,
+    rot: (f32, f32),
+}
+
+/// Tile side in cells: about 0.8 m at 5 cm, so a 3.5 m lidar visits about 10 x 10 tiles.
+const EDGE_TILE: usize = 16;
+
+impl GridEdges {
+    fn new(blocked: &[bool], width: usize, height: usize, resolution: f32, origin: &Pose2) -> Self {
+        let at = |x: usize, y: usize| blocked[y * width + x];
+        let (tiles_x, tiles_y) = (width.div_ceil(EDGE_TILE), height.div_ceil(EDGE_TILE));
+        let mut bins: Vec<Vec<(Vec2, Vec2)>> = vec![Vec::new(); tiles_x * tiles_y];
+        let to_world = |x: f32, y: f32| origin.to_parent(Vec2::new(x * resolution, y * resolution));
+        // Runs of cell edges along one grid line: `kind(i)` says whether the edge at step `i`
+        // belongs to the outline, its direction, and the tile of the blocked cell that owns it;
+        // consecutive edges of one kind merge (so a run ends at a tile border).
+        let mut emit_runs = |n: usize,
+                             kind: &dyn Fn(usize) -> Option<(bool, usize)>,
+                             seg: &dyn Fn(usize, usize, bool) -> (Vec2, Vec2)| {
+            let mut i = 0;
+            while i < n {
+                let Some((forward, tile)) = kind(i) else {
+                    i += 1;
+                    continue;
+                };
+                let start = i;
+                while i < n && kind(i) == Some((forward, tile)) {
+                    i += 1;
+                }
+                let (a, b) = seg(start, i, forward);
+                bins[tile].push((a, b));
+            }
+        };
+        let tile_of = |x: usize, y: usize| (y / EDGE_TILE) * tiles_x + x / EDGE_TILE;
+        // Horizontal grid lines y = 0..=height: a blocked cell above and an open one below is the
+        // cell's bottom edge, run +x; blocked below and open above, its top edge, run -x.
+        for y in 0..=height {
+            let kind = |x: usize| {
+                let above = y < height && at(x, y);
+                let below = y > 0 && at(x, y - 1);
+                match (above, below) {
+                    (true, false) => Some((true, tile_of(x, y))),
+                    (false, true) => Some((false, tile_of(x, y - 1))),
+                    _ => None,
+                }
+            };
+            let seg = |x0: usize, x1: usize, forward: bool| {
+                let (a, b) = (to_world(x0 as f32, y as f32), to_world(x1 as f32, y as f32));
+                if forward { (a, b) } else { (b, a) }
+            };
+            emit_runs(width, &kind, &seg);
+        }
+        // Vertical grid lines x = 0..=width: blocked on the right, the cell's left edge, run -y;
+        // blocked on the left, its right edge, run +y.
+        for x in 0..=width {
+            let kind = |y: usize| {
+                let right = x < width && at(x, y);
+                let left = x > 0 && at(x - 1, y);
+                match (right, left) {
+                    (true, false) => Some((false, tile_of(x, y))),
+                    (false, true) => Some((true, tile_of(x - 1, y))),
+                    _ => None,
+                }
+            };
+            let seg = |y0: usize, y1: usize, forward: bool| {
+                let (a, b) = (to_world(x as f32, y0 as f32), to_world(x as f32, y1 as f32));
+                if forward { (a, b) } else { (b, a) }
+            };
+            emit_runs(height, &kind, &seg);
+        }
+        let mut tile_start = Vec::with_capacity(bins.len() + 1);
+        let mut segments = Vec::with_capacity(bins.iter().map(Vec::len).sum());
+        for b in &bins {
+            tile_start.push(segments.len() as u32);
+            segments.extend_from_slice(b);
+        }
+        tile_start.push(segments.len() as u32);
+        Self { segments, tile_start, tiles_x, tiles_y, origin: *origin, resolution, rot: origin.yaw.sin_cos() }
+    }
+
+    /// Number of segments.
+    pub fn len(&self) -> usize {
+        self.segments.len()
+    }
+
+    /// Whether there are none (a grid without blocked cells).
+    pub fn is_empty(&self) -> bool {
+        self.segments.is_empty()
+    }
+
+    /// Calls `f` with the segments of every tile that may hold a point within `reach` of `p`
+    /// (a square of tiles around the disc; callers cull by exact distance), one row of tiles
+    /// at a time.
+    #[inline]
+    pub fn near(&self, p: Vec2, reach: f32, mut f: impl FnMut(&[(Vec2, Vec2)])) {
+        if self.segments.is_empty() {
+            return;
+        }
+        let (s, c) = self.rot;
+        let rel = p - self.origin.position();
+        let tile = self.resolution * EDGE_TILE as f32;
+        let gx = (c * rel.x + s * rel.y) / tile;
+        let gy = (-s * rel.x + c * rel.y) / tile;
+        let r = reach / tile;
+        let range = |g: f32, n: usize| {
+            let lo = (g - r).floor().max(0.0);
+            let hi = (g + r).floor().min(n as f32 - 1.0);
+            (lo <= hi).then_some((lo as usize, hi as usize))
+        };
+        let (Some((x0, x1)), Some((y0, y1))) = (range(gx, self.tiles_x), range(gy, self.tiles_y)) else {
+            return;
+        };
+        for ty in y0..=y1 {
+            let row = ty * self.tiles_x;
+            let (a, b) = (self.tile_start[row + x0] as usize, self.tile_start[row + x1 + 1] as usize);
+            if a < b {
+                f(&self.segments[a..b]);
             }
         }
     }

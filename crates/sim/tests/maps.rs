@@ -104,6 +104,66 @@ proptest! {
     }
 }
 
+/// Whether two readings of the beam `dir` from `sensor` on grid `g` are the same hit: equal up
+/// to rounding; or a beam that grazes a cell corner, which f32 rounding may put on either side
+/// (the shorter reading then ends on a grid vertex); or a beam nearly parallel to a wall, where
+/// rounding moves the hit along the wall (both readings end on the same grid line).
+fn same_hit(g: &OccupancyGrid, sensor: Vec2, dir: Vec2, a: f32, b: f32) -> bool {
+    if a == b || (a - b).abs() <= 1e-5 * a.max(b).max(1.0) {
+        return true;
+    }
+    let cell = |t: f32| g.origin().to_local(sensor + dir * t) / g.resolution();
+    let on_line = |v: f32| (v - v.round()).abs() < 1e-3;
+    let (p, q) = (cell(a.min(b)), cell(a.max(b)));
+    let corner = on_line(p.x) && on_line(p.y);
+    let along_x = on_line(p.y) && on_line(q.y) && p.y.round() == q.y.round();
+    let along_y = on_line(p.x) && on_line(q.x) && p.x.round() == q.x.round();
+    corner || along_x || along_y
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(if std::env::var("CI").is_ok() { 48 } else { 160 }))]
+
+    /// The lidar casts a grid through its outline (segments, binned in tiles); every beam must
+    /// give what the exact cell walk gives, from inside and outside the grid, with any mount,
+    /// field of view, grid pose and range, up to rounding (see [`same_hit`]).
+    #[test]
+    fn lidar_on_a_grid_equals_the_cell_walk(seed in 0u64..1_000_000, fill in 0.01f64..0.4, yaw in -3.2f32..3.2,
+                                             res in 0.02f32..0.2, ox in -1.0f32..1.0, oy in -1.0f32..1.0,
+                                             fov in 1.0f32..std::f32::consts::TAU, range in 5.0f32..80.0, beams in 10usize..400) {
+        let origin = Pose2::new(ox, oy, yaw);
+        let g = Arc::new(random_grid(seed, 53, 37, fill, res, origin));
+        let world = World::with_grid(Vec::new(), g.clone());
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed ^ 0x1d4);
+        let spec = LidarSpec {
+            beams,
+            angle_min: -fov / 2.0,
+            angle_max: fov / 2.0,
+            range_min: 0.0,
+            range_max: range * res,
+            mount: Pose2::new(rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1), rng.random_range(-3.2..3.2)),
+            ..Default::default()
+        };
+        let lidar = Lidar::new(spec);
+        let (mut dirs, mut fast, mut walk) = (vec![Vec2::ZERO; beams], vec![0.0; beams], vec![0.0; beams]);
+        for _ in 0..20 {
+            let local = Vec2::new(rng.random_range(-8.0..61.0), rng.random_range(-8.0..45.0)) * res;
+            let p = origin.to_parent(local);
+            let pose = Pose2::new(p.x, p.y, rng.random_range(-3.2..3.2));
+            let sensor = lidar.sensor_pose(&pose).position();
+            if g.clearance(sensor) < 1e-4 && !g.blocks(sensor) {
+                continue; // on a blocked cell's boundary: a matter of convention
+            }
+            lidar.scan(&pose, world.ray_geometry(), &mut dirs, &mut fast);
+            lidar.scan_reference(&pose, &world, &mut walk);
+            for (i, (f, w)) in fast.iter().zip(&walk).enumerate() {
+                prop_assert!(same_hit(&g, sensor, dirs[i], *f, *w),
+                    "beam {i}: outline {f}, cell walk {w}, sensor {sensor:?} (grid {:?})", g.origin().to_local(sensor) / res);
+            }
+        }
+    }
+}
+
 #[test]
 fn lidar_on_a_grid_equals_lidar_on_the_same_cells_as_boxes() {
     let origin = Pose2::new(-2.0, -1.5, 0.0);
@@ -480,4 +540,41 @@ fn known_clearance_counts_unknown_cells_even_when_they_are_open() {
     assert!(!open.is_known_clear(p, 0.6) && open.is_known_clear(p, 0.5), "but 0.5 m from a cell nobody mapped");
     let walled = OccupancyGrid::from_cells("t", 4, 1, 1.0, Pose2::default(), cells, UnknownCells::Occupied);
     assert!(!walled.is_clear(p, 0.6) && !walled.is_known_clear(p, 0.6) && walled.is_known_clear(p, 0.5));
+}
+
+/// The shipped maps (a drawn warehouse; ROBOTIS's map_saver map with its unknown space): the
+/// lidar's outline cast equals the cell walk from poses all over the known free space.
+#[test]
+fn lidar_on_the_shipped_maps_equals_the_cell_walk() {
+    for name in ["warehouse", "turtlebot3-world"] {
+        let g = Arc::new(OccupancyGrid::load(name, UnknownCells::Occupied).unwrap());
+        let world = World::with_grid(Vec::new(), g.clone());
+        let b = g.known_bounds();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        for range_max in [3.5, 12.0] {
+            let lidar = Lidar::new(LidarSpec { beams: 360, range_max, ..Default::default() });
+            let (mut dirs, mut fast, mut walk) = (vec![Vec2::ZERO; 360], vec![0.0; 360], vec![0.0; 360]);
+            let (mut poses, mut mismatches) = (0, 0);
+            while poses < 300 {
+                let p = Vec2::new(rng.random_range(b.min.x..b.max.x), rng.random_range(b.min.y..b.max.y));
+                if !g.is_known_free(p) || g.clearance(p) < 0.05 {
+                    continue;
+                }
+                poses += 1;
+                let pose = Pose2::new(p.x, p.y, rng.random_range(-3.2..3.2));
+                lidar.scan(&pose, world.ray_geometry(), &mut dirs, &mut fast);
+                lidar.scan_reference(&pose, &world, &mut walk);
+                for (i, (f, w)) in fast.iter().zip(&walk).enumerate() {
+                    let sensor = lidar.sensor_pose(&pose).position();
+                    assert!(
+                        same_hit(&g, sensor, dirs[i], *f, *w),
+                        "{name} beam {i} at {pose:?}: outline {f}, walk {w}"
+                    );
+                    mismatches += usize::from((f - w).abs() > 1e-5 * f.max(*w).max(1.0));
+                }
+            }
+            // Rounding differences are rare: grazing beams only.
+            assert!(mismatches < 300 * 360 / 200, "{name}: {mismatches} of {} beams differ", 300 * 360);
+        }
+    }
 }
