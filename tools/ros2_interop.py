@@ -6,6 +6,8 @@ a real rclpy node (ROS 2 Jazzy, Fast DDS) and an Eclipse Cyclone DDS participant
 Modes:
   rclpy-node    publish /scan and /odom, expect rlnav's node to answer on /cmd_vel, and find
                 rlnav_policy and its topics with their types in the ROS graph
+  rclpy-plan    as rclpy-node, for a node started without a goal: the goal comes as a
+                nav_msgs/Path on /plan (what Nav2's planner server publishes)
   rclpy-sim     subscribe to the sim bridge's /scan, /odom and /goal_pose, check them, and drive
                 the robot to the goal with a proportional controller on /cmd_vel
   cyclone-node  as rclpy-node, over Cyclone DDS with hand-declared ROS 2 types
@@ -33,10 +35,10 @@ def result(ok, **fields):
 
 # ---------------------------------------------------------------- rclpy (ROS 2 Jazzy)
 
-def rclpy_node(seconds):
+def rclpy_node(seconds, plan=False):
     import rclpy
-    from geometry_msgs.msg import Twist
-    from nav_msgs.msg import Odometry
+    from geometry_msgs.msg import PoseStamped, Twist
+    from nav_msgs.msg import Odometry, Path
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import LaserScan
 
@@ -44,9 +46,10 @@ def rclpy_node(seconds):
     node = rclpy.create_node("interop_robot")
     scan_pub = node.create_publisher(LaserScan, "/scan", qos_profile_sensor_data)
     odom_pub = node.create_publisher(Odometry, "/odom", 10)
+    plan_pub = node.create_publisher(Path, "/plan", 10)
     got = []
     node.create_subscription(Twist, "/cmd_vel", lambda m: got.append((m.linear.x, m.angular.z)), 10)
-    graph = {"node": False, "cmd_vel_type": None, "scan_type": None}
+    graph = {"node": False, "cmd_vel_type": None, "scan_type": None, "plan_type": None}
     end = time.time() + seconds
     while time.time() < end:
         now = node.get_clock().now().to_msg()
@@ -61,6 +64,17 @@ def rclpy_node(seconds):
         o.header.stamp, o.header.frame_id, o.child_frame_id = now, "odom", "base_link"
         o.pose.pose.orientation.w = 1.0
         odom_pub.publish(o)
+        if plan:
+            # An L-shaped plan in the odometry frame, ending 3 m away.
+            p = Path()
+            p.header.stamp, p.header.frame_id = now, "odom"
+            for x, y in [(0.0, 0.0), (1.5, 0.0), (1.5, 1.5), (3.0, 1.5)]:
+                ps = PoseStamped()
+                ps.header = p.header
+                ps.pose.position.x, ps.pose.position.y = x, y
+                ps.pose.orientation.w = 1.0
+                p.poses.append(ps)
+            plan_pub.publish(p)
         rclpy.spin_once(node, timeout_sec=0.1)
         names = node.get_node_names_and_namespaces()
         graph["node"] = graph["node"] or any(n == "rlnav_policy" for n, _ in names)
@@ -69,6 +83,8 @@ def rclpy_node(seconds):
                 graph["cmd_vel_type"] = types
             if name == "/scan":
                 graph["scan_type"] = types
+            if name == "/plan":
+                graph["plan_type"] = types
         moving = [g for g in got if g[0] > 0.05]
         if len(moving) >= 5 and graph["node"] and graph["cmd_vel_type"]:
             break
@@ -308,8 +324,8 @@ def cyclone_sim(seconds):
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
-    ap.add_argument("mode", choices=["rclpy-node", "rclpy-sim", "cyclone-node", "cyclone-sim"])
+    ap.add_argument("mode", choices=["rclpy-node", "rclpy-plan", "rclpy-sim", "cyclone-node", "cyclone-sim"])
     ap.add_argument("--seconds", type=float, default=30.0)
     a = ap.parse_args()
     {"rclpy-node": rclpy_node, "rclpy-sim": rclpy_sim, "cyclone-node": cyclone_node,
-     "cyclone-sim": cyclone_sim}[a.mode](a.seconds)
+     "cyclone-sim": cyclone_sim, "rclpy-plan": lambda t: rclpy_node(t, plan=True)}[a.mode](a.seconds)

@@ -112,6 +112,17 @@ fn rclpy_drives_with_the_node_and_sees_it_in_the_graph() {
     }
 }
 
+/// A node started without a goal drives once rclpy publishes a `nav_msgs/Path` on `/plan`
+/// (Nav2's planner output): the plan crossed the wire and became the goal.
+#[test]
+fn rclpy_plan_drives_a_node_that_has_no_goal() {
+    let node = format!("node --policy {ROOT}/{POLICY}");
+    if let Some((v, _)) = interop("rclpy-plan", &node, 67) {
+        assert!(v["moving"].as_u64().unwrap() >= 5, "{v}");
+        assert_eq!(v["graph"]["plan_type"][0], "nav_msgs/msg/Path");
+    }
+}
+
 #[test]
 fn rclpy_reads_the_sim_bridge_and_drives_it_to_the_goal() {
     if let Some((v, stdout)) = interop("rclpy-sim", "sim --scenario empty-room --seed 3 --episodes 1", 64) {
@@ -138,7 +149,7 @@ fn sigterm_leaves_the_robot_commanded_to_stop() {
     use rlnav_ros2::bus::{Bus, Qos, Reach, drain};
     use rlnav_ros2::msg::*;
     use std::time::{Duration, Instant};
-    let domain = 66u16;
+    let domain = 68u16;
     let mut node = Command::new(BIN)
         .args(["ros2", "node", "--policy", &format!("{ROOT}/{POLICY}"), "--goal", "30", "0", "--localhost"])
         .env("ROS_DOMAIN_ID", domain.to_string())

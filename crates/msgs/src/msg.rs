@@ -53,6 +53,7 @@ fn definition_of(full_name: &str) -> Option<&'static str> {
         "geometry_msgs/msg/TwistWithCovariance" => TwistWithCovariance::DEFINITION,
         "geometry_msgs/msg/Transform" => Transform::DEFINITION,
         "geometry_msgs/msg/TransformStamped" => TransformStamped::DEFINITION,
+        "geometry_msgs/msg/PoseStamped" => PoseStamped::DEFINITION,
         _ => return None,
     })
 }
@@ -343,6 +344,29 @@ ros_message!(
         "geometry_msgs/msg/Quaternion"
     ],
     "std_msgs/Header header\nPose pose\n"
+);
+
+/// `nav_msgs/Path`: a plan, as Nav2's planner server publishes it on `/plan`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Path {
+    /// Header (the frame of the poses, usually `map`).
+    pub header: Header,
+    /// The poses from the start to the goal.
+    pub poses: Vec<PoseStamped>,
+}
+ros_message!(
+    Path,
+    "nav_msgs",
+    "Path",
+    [
+        "geometry_msgs/msg/PoseStamped",
+        "std_msgs/msg/Header",
+        "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/Pose",
+        "geometry_msgs/msg/Point",
+        "geometry_msgs/msg/Quaternion"
+    ],
+    "std_msgs/Header header\ngeometry_msgs/PoseStamped[] poses\n"
 );
 
 /// `geometry_msgs/Transform`.

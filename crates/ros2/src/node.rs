@@ -7,7 +7,7 @@
 //! returns, it drives again.
 
 use crate::bus::{Bus, BusError, Qos, Reach, drain};
-use crate::msg::{self, LaserScan, Odometry, PoseStamped, StringMsg, TFMessage, Time, TwistStamped};
+use crate::msg::{self, LaserScan, Odometry, Path as PlanMsg, PoseStamped, StringMsg, TFMessage, Time, TwistStamped};
 use rlnav_policy::PolicyRunner;
 use rlnav_sim::config::{ConfigError, Invalid, Validate, check_positive};
 use rlnav_sim::{Controller, Pose2, RobotObservation, Twist, Vec2, wrap_angle};
@@ -32,6 +32,12 @@ pub struct NodeParams {
     pub pose_topic: String,
     /// `geometry_msgs/PoseStamped` goals (RViz2's "2D Goal Pose").
     pub goal_topic: String,
+    /// `nav_msgs/Path` plans to follow (Nav2's planner server publishes `/plan`): the policy
+    /// steers to a point `lookahead` ahead along the plan, and the plan's last pose is the goal.
+    pub plan_topic: String,
+    /// How far ahead along a plan the policy's goal is put (m, path length from the robot's
+    /// projection on the plan); default: half the policy's lidar range, within 0.5-2 m.
+    pub lookahead: Option<f32>,
     /// `/tf` input, to bring goals given in another frame into the pose frame.
     pub tf_topic: String,
     /// Velocity command output.
@@ -77,6 +83,8 @@ impl Default for NodeParams {
             odom_topic: "/odom".into(),
             pose_topic: String::new(),
             goal_topic: "/goal_pose".into(),
+            plan_topic: "/plan".into(),
+            lookahead: None,
             tf_topic: "/tf".into(),
             cmd_vel_topic: "/cmd_vel".into(),
             cmd_vel_stamped: false,
@@ -129,6 +137,7 @@ impl Validate for NodeParams {
             ("goal_tolerance", self.goal_tolerance),
             ("max_linear", self.max_linear),
             ("max_angular", self.max_angular),
+            ("lookahead", self.lookahead),
         ] {
             if let Some(v) = v {
                 check_positive(k, v)?;
@@ -141,6 +150,7 @@ impl Validate for NodeParams {
             ("scan_topic", &self.scan_topic),
             ("odom_topic", &self.odom_topic),
             ("goal_topic", &self.goal_topic),
+            ("plan_topic", &self.plan_topic),
             ("cmd_vel_topic", &self.cmd_vel_topic),
         ] {
             if !t.starts_with('/') {
@@ -185,6 +195,61 @@ struct PoseSample {
     received: f64,
 }
 
+/// A plan being followed: its points in its own frame and how far along the robot is.
+#[derive(Clone, Debug)]
+struct Plan {
+    frame: String,
+    points: Vec<Vec2>,
+    /// The segment the robot's projection lay on last (it only moves forward).
+    progress: usize,
+}
+
+/// The point `lookahead` ahead along `path` (path length) of the robot at `p`: the robot is
+/// projected on the nearest segment among those from `*progress` up to a few lookaheads
+/// further (so a path that loops back past the robot is not cut short), `*progress` moves to
+/// that segment, and the point is the path's end when less than `lookahead` remains. Points
+/// are in one frame; `path` has at least one point.
+pub fn plan_subgoal(path: &[Vec2], progress: &mut usize, p: Vec2, lookahead: f32) -> Vec2 {
+    if path.len() < 2 {
+        return path[0];
+    }
+    let last = path.len() - 2;
+    let start = (*progress).min(last);
+    // Nearest segment within reach: up to 2 lookaheads plus the robot's distance from the
+    // current segment along the path.
+    let reach = 2.0 * lookahead + rlnav_sim::geometry::point_segment_distance(p, path[start], path[start + 1]);
+    let (mut best, mut best_d, mut best_t) = (start, f32::INFINITY, 0.0);
+    let mut walked = 0.0;
+    for k in start..=last {
+        let (a, b) = (path[k], path[k + 1]);
+        let e = b - a;
+        let len2 = e.length_squared();
+        let t = if len2 > 0.0 { ((p - a).dot(e) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        let d = (a + e * t - p).length();
+        if d < best_d {
+            (best, best_d, best_t) = (k, d, t);
+        }
+        walked += len2.sqrt();
+        if walked > reach {
+            break;
+        }
+    }
+    *progress = best;
+    // Walk `lookahead` along the path from the projection.
+    let mut left = lookahead;
+    let mut from = path[best] + (path[best + 1] - path[best]) * best_t;
+    for k in best..=last {
+        let to = path[k + 1];
+        let step = (to - from).length();
+        if step >= left {
+            return from + (to - from) * (left / step);
+        }
+        left -= step;
+        from = to;
+    }
+    path[last + 1]
+}
+
 /// The policy node's logic.
 pub struct PolicyNode {
     params: NodeParams,
@@ -194,6 +259,11 @@ pub struct PolicyNode {
     pose: Option<PoseSample>,
     pose_frame: Option<String>,
     goal: Option<Vec2>,
+    /// The plan being followed, if the goal came as one.
+    plan: Option<Plan>,
+    /// The point the policy steered to at the last tick (the goal, or a point on the plan).
+    target: Option<Vec2>,
+    lookahead: f32,
     pending_goal: Option<PoseStamped>,
     /// Why the last goal could not be used (it stops the robot until a usable goal arrives).
     goal_error: Option<String>,
@@ -218,6 +288,7 @@ impl PolicyNode {
     /// The node for `runner` with `params`.
     pub fn new(runner: PolicyRunner, params: NodeParams) -> Self {
         let tolerance = params.goal_tolerance.unwrap_or(runner.contract().goal_tolerance);
+        let lookahead = params.lookahead.unwrap_or((0.5 * runner.contract().scan.range_max).clamp(0.5, 2.0));
         let goal = params.goal.map(|g| Vec2::new(g[0] as f32, g[1] as f32));
         Self {
             params,
@@ -227,6 +298,9 @@ impl PolicyNode {
             pose: None,
             pose_frame: None,
             goal,
+            plan: None,
+            target: None,
+            lookahead,
             pending_goal: None,
             goal_error: None,
             tf: BTreeMap::new(),
@@ -248,9 +322,20 @@ impl PolicyNode {
         &self.state
     }
 
-    /// The goal in the pose frame, if any.
+    /// The goal in the pose frame, if any (a plan's last point, as of the last tick).
     pub fn goal(&self) -> Option<Vec2> {
         self.goal
+    }
+
+    /// Where the policy steered at the last tick, in the pose frame: the goal, or with a plan
+    /// the point `lookahead` ahead along it.
+    pub fn target(&self) -> Option<Vec2> {
+        self.target
+    }
+
+    /// The lookahead along plans (m).
+    pub fn lookahead(&self) -> f32 {
+        self.lookahead
     }
 
     /// A scan arrived at `now` (s, the node's clock).
@@ -394,6 +479,8 @@ impl PolicyNode {
         } else {
             self.lookup(&pose_frame, frame).map(|t| t.to_parent(Vec2::new(x as f32, y as f32)))
         };
+        // A goal pose replaces any plan.
+        self.plan = None;
         match goal {
             Some(g) => {
                 self.goal_error = None;
@@ -408,6 +495,62 @@ impl PolicyNode {
                 self.goal_error = Some(format!("goal in frame `{frame}`, which has no transform to `{pose_frame}`"));
             }
         }
+    }
+
+    /// A plan arrived: it replaces the goal and any earlier plan. Its last pose is the goal;
+    /// an empty plan cancels the goal (the robot stops, idle). Its frame is resolved at every
+    /// tick, through `/tf` when it is not the pose frame (a `map` plan follows the robot's
+    /// localisation as `map -> odom` moves). A plan with a non-finite point is refused.
+    pub fn on_plan(&mut self, m: &PlanMsg) {
+        let mut points: Vec<Vec2> = Vec::with_capacity(m.poses.len());
+        for ps in &m.poses {
+            let (x, y) = (ps.pose.position.x, ps.pose.position.y);
+            if !(x.is_finite() && y.is_finite()) {
+                self.rejected += 1;
+                return;
+            }
+            let q = Vec2::new(x as f32, y as f32);
+            if points.last() != Some(&q) {
+                points.push(q);
+            }
+        }
+        self.goal_error = None;
+        self.pending_goal = None;
+        let Some(&end) = points.last() else {
+            self.plan = None;
+            self.goal = None;
+            self.target = None;
+            return;
+        };
+        // A new plan to the same goal (Nav2 replans about once a second) keeps the episode: the
+        // policy's memory and a goal already reached.
+        let same_goal = self.plan.as_ref().is_some_and(|p| {
+            p.frame == m.header.frame_id && p.points.last().is_some_and(|e| (*e - end).length() < self.tolerance)
+        });
+        if !same_goal {
+            self.reached = false;
+            self.runner.reset();
+        }
+        self.plan = Some(Plan { frame: m.header.frame_id.clone(), points, progress: 0 });
+    }
+
+    /// The goal and the point to steer to for a robot at `pose` (pose frame): the goal alone,
+    /// or with a plan its last point and the point `lookahead` ahead along it.
+    fn targets(&mut self, pose: Pose2) -> Result<Option<(Vec2, Vec2)>, String> {
+        let Some(plan) = &self.plan else { return Ok(self.goal.map(|g| (g, g))) };
+        let pose_frame = self.pose_frame.clone().unwrap_or_default();
+        let t = if plan.frame.is_empty() || plan.frame == pose_frame {
+            Pose2::default()
+        } else {
+            self.lookup(&pose_frame, &plan.frame)
+                .ok_or_else(|| format!("plan in frame `{}`, which has no transform to `{pose_frame}`", plan.frame))?
+        };
+        let lookahead = self.lookahead;
+        let plan = self.plan.as_mut().expect("checked above");
+        let here = t.to_local(pose.position());
+        let sub = plan_subgoal(&plan.points, &mut plan.progress, here, lookahead);
+        let end = *plan.points.last().expect("plans are not empty");
+        Ok(Some((t.to_parent(end), t.to_parent(sub))))
     }
 
     fn cap(&self, c: Twist) -> Twist {
@@ -430,8 +573,10 @@ impl PolicyNode {
         if let Some(why) = &self.goal_error {
             return stop(why.clone());
         }
-        let Some(goal) = self.goal else { return (Twist::default(), NodeState::Idle) };
-        let Some((scan, scan_at, _)) = &self.scan else { return stop("no scan yet".into()) };
+        if self.goal.is_none() && self.plan.is_none() {
+            return (Twist::default(), NodeState::Idle);
+        }
+        let Some((_, scan_at, _)) = &self.scan else { return stop("no scan yet".into()) };
         if now - scan_at > self.params.scan_timeout {
             return stop(format!("no scan for {:.2} s", now - scan_at));
         }
@@ -439,6 +584,14 @@ impl PolicyNode {
         if now - pose.received > self.params.pose_timeout {
             return stop(format!("no pose for {:.2} s", now - pose.received));
         }
+        let (goal, target) = match self.targets(pose.pose) {
+            Ok(Some(g)) => g,
+            Ok(None) => return (Twist::default(), NodeState::Idle),
+            Err(why) => return stop(why),
+        };
+        self.goal = Some(goal);
+        self.target = Some(target);
+        let scan = &self.scan.as_ref().expect("checked above").0;
         let d = (goal - pose.pose.position()).length();
         if self.reached || d < self.tolerance {
             self.reached = true;
@@ -451,7 +604,7 @@ impl PolicyNode {
             pose: pose.pose,
             velocity: pose.velocity,
             lateral_velocity: pose.lateral,
-            goal,
+            goal: target,
             last_command: self.last_command,
             time: (now - started) as f32,
         };
@@ -487,6 +640,7 @@ pub fn run_node(
         Some(bus.subscription::<PoseStamped>(&p.pose_topic, Qos::Default)?)
     };
     let goal_sub = bus.subscription::<PoseStamped>(&p.goal_topic, Qos::Default)?;
+    let plan_sub = bus.subscription::<PlanMsg>(&p.plan_topic, Qos::Default)?;
     let tf_sub = bus.subscription::<TFMessage>(&p.tf_topic, Qos::Default)?;
     let twist_pub =
         if p.cmd_vel_stamped { None } else { Some(bus.publisher::<msg::Twist>(&p.cmd_vel_topic, Qos::Default)?) };
@@ -505,6 +659,8 @@ pub fn run_node(
     let mut scan_sub = scan_sub;
     let mut goal_sub = goal_sub;
     let mut tf_sub = tf_sub;
+    let mut plan_sub = plan_sub;
+    watch(&mut plan_sub, 5)?;
     watch(&mut scan_sub, 0)?;
     watch(&mut goal_sub, 1)?;
     watch(&mut tf_sub, 2)?;
@@ -539,6 +695,9 @@ pub fn run_node(
         }
         for m in drain(&goal_sub, &mut dropped) {
             node.on_goal(&m);
+        }
+        for m in drain(&plan_sub, &mut dropped) {
+            node.on_plan(&m);
         }
         let scans = drain(&scan_sub, &mut dropped);
         pending_scan |= !scans.is_empty();
