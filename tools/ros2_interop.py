@@ -7,7 +7,8 @@ Modes:
   rclpy-node    publish /scan and /odom, expect rlnav's node to answer on /cmd_vel, and find
                 rlnav_policy and its topics with their types in the ROS graph
   rclpy-plan    as rclpy-node, for a node started without a goal: the goal comes as a
-                nav_msgs/Path on /plan (what Nav2's planner server publishes)
+                nav_msgs/Path on /plan (what Nav2's planner server publishes), and /odom is
+                published best effort (as a TurtleBot 4 does)
   rclpy-sim     subscribe to the sim bridge's /scan, /odom and /goal_pose, check them, and drive
                 the robot to the goal with a proportional controller on /cmd_vel
   cyclone-node  as rclpy-node, over Cyclone DDS with hand-declared ROS 2 types
@@ -45,7 +46,8 @@ def rclpy_node(seconds, plan=False):
     rclpy.init()
     node = rclpy.create_node("interop_robot")
     scan_pub = node.create_publisher(LaserScan, "/scan", qos_profile_sensor_data)
-    odom_pub = node.create_publisher(Odometry, "/odom", 10)
+    # In plan mode odometry goes out best effort, as a TurtleBot 4 publishes it.
+    odom_pub = node.create_publisher(Odometry, "/odom", qos_profile_sensor_data if plan else 10)
     plan_pub = node.create_publisher(Path, "/plan", 10)
     got = []
     node.create_subscription(Twist, "/cmd_vel", lambda m: got.append((m.linear.x, m.angular.z)), 10)

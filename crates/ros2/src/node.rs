@@ -64,6 +64,9 @@ pub struct NodeParams {
     pub lidar_yaw_offset: f32,
     /// Compute a command as each scan arrives (`scan`) or every control period (`timer`).
     pub trigger: Trigger,
+    /// Stamp stamped commands with the simulator's time from `/clock` (ROS's `use_sim_time`).
+    /// Timeouts are judged on the node's own clock by arrival either way.
+    pub use_sim_time: bool,
 }
 
 /// When the node computes a command.
@@ -98,6 +101,7 @@ impl Default for NodeParams {
             pose_timeout: 0.5,
             lidar_yaw_offset: 0.0,
             trigger: Trigger::Timer,
+            use_sim_time: false,
         }
     }
 }
@@ -111,17 +115,53 @@ impl NodeParams {
         Self::from_yaml(&file, &text)
     }
 
-    /// Parses parameters from YAML text (`source` names it in errors).
+    /// Parses parameters from YAML text (`source` names it in errors): flat, or a ROS 2
+    /// parameters file (`NODE: {ros__parameters: ...}` sections). In the latter, the sections
+    /// for every node (`/**`) and for this node (`rlnav_policy`, `/rlnav_policy`) apply, in
+    /// that order, so a stack's shared file (Nav2's `nav2_params.yaml`) works unchanged; other
+    /// nodes' sections are skipped. A file of one section for another name is taken as this
+    /// node's (a launch file may rename it).
     pub fn from_yaml(source: &str, text: &str) -> Result<Self, ConfigError> {
+        use serde_norway::{Mapping, Value};
         let parse = |e: serde_norway::Error| ConfigError::Parse { file: source.to_string(), message: e.to_string() };
-        let value: serde_norway::Value = serde_norway::from_str(text).map_err(parse)?;
-        let nested = value
+        let value: Value = serde_norway::from_str(text).map_err(parse)?;
+        let sections: Vec<(String, &Mapping)> = value
             .as_mapping()
-            .filter(|m| m.len() == 1)
-            .and_then(|m| m.values().next())
-            .and_then(|v| v.get("ros__parameters"))
-            .cloned();
-        let flat = serde_norway::to_string(&nested.unwrap_or(value)).map_err(parse)?;
+            .map(|m| {
+                m.iter()
+                    .filter_map(|(k, v)| Some((k.as_str()?.to_string(), v.get("ros__parameters")?.as_mapping()?)))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let flat = if sections.is_empty() {
+            value
+        } else {
+            let ours = |k: &str| matches!(k, "/**" | "**" | "rlnav_policy" | "/rlnav_policy");
+            let mut picked: Vec<&(String, &Mapping)> = sections.iter().filter(|(k, _)| ours(k)).collect();
+            // Wildcards first, so that this node's own section overrides them.
+            picked.sort_by_key(|(k, _)| !k.ends_with("**"));
+            if picked.is_empty() && sections.len() == 1 {
+                picked.push(&sections[0]);
+            }
+            if picked.is_empty() {
+                let names: Vec<&str> = sections.iter().map(|(k, _)| k.as_str()).collect();
+                return Err(ConfigError::Parse {
+                    file: source.to_string(),
+                    message: format!(
+                        "no parameters for rlnav_policy: expected a `rlnav_policy:` or `/**:` section, found {}",
+                        names.join(", ")
+                    ),
+                });
+            }
+            let mut merged = Mapping::new();
+            for (_, m) in picked {
+                for (k, v) in m.iter() {
+                    merged.insert(k.clone(), v.clone());
+                }
+            }
+            Value::Mapping(merged)
+        };
+        let flat = serde_norway::to_string(&flat).map_err(parse)?;
         rlnav_sim::config::from_yaml_str(source, &flat)
     }
 }
@@ -632,13 +672,20 @@ pub fn run_node(
     let p = node.params.clone();
     let mut bus = Bus::new("rlnav_policy", domain, reach)?;
     let scan_sub = bus.subscription::<LaserScan>(&p.scan_topic, Qos::SensorData)?;
-    let odom_sub =
-        if p.pose_topic.is_empty() { Some(bus.subscription::<Odometry>(&p.odom_topic, Qos::Default)?) } else { None };
+    // Odometry and poses are read best effort, which matches reliable and best-effort writers
+    // alike (a TurtleBot 4 publishes /odom best effort; a reliable reader would never match it).
+    let odom_sub = if p.pose_topic.is_empty() {
+        Some(bus.subscription::<Odometry>(&p.odom_topic, Qos::SensorData)?)
+    } else {
+        None
+    };
     let pose_sub = if p.pose_topic.is_empty() {
         None
     } else {
-        Some(bus.subscription::<PoseStamped>(&p.pose_topic, Qos::Default)?)
+        Some(bus.subscription::<PoseStamped>(&p.pose_topic, Qos::SensorData)?)
     };
+    let clock_sub = if p.use_sim_time { Some(bus.subscription::<msg::Clock>("/clock", Qos::Default)?) } else { None };
+    let mut sim_time: Option<Time> = None;
     let goal_sub = bus.subscription::<PoseStamped>(&p.goal_topic, Qos::Default)?;
     let plan_sub = bus.subscription::<PlanMsg>(&p.plan_topic, Qos::Default)?;
     let tf_sub = bus.subscription::<TFMessage>(&p.tf_topic, Qos::Default)?;
@@ -683,6 +730,11 @@ pub fn run_node(
         for m in drain(&tf_sub, &mut dropped) {
             node.on_tf(&m);
         }
+        if let Some(s) = &clock_sub {
+            if let Some(c) = drain(s, &mut dropped).last() {
+                sim_time = Some(c.clock);
+            }
+        }
         if let Some(s) = &odom_sub {
             for m in drain(s, &mut dropped) {
                 node.on_odom(&m, now);
@@ -721,8 +773,10 @@ pub fn run_node(
                 let _ = pb.publish(twist);
             }
             if let Some(pb) = &stamped_pub {
-                let stamp =
-                    Time::from_secs(std::time::SystemTime::UNIX_EPOCH.elapsed().map_or(0.0, |d| d.as_secs_f64()));
+                let wall =
+                    || Time::from_secs(std::time::SystemTime::UNIX_EPOCH.elapsed().map_or(0.0, |d| d.as_secs_f64()));
+                // With use_sim_time and no /clock yet, zero, as rclcpp stamps before the first.
+                let stamp = if p.use_sim_time { sim_time.unwrap_or_default() } else { wall() };
                 let _ = pb.publish(TwistStamped { header: msg::Header::new(stamp, &p.base_frame), twist });
             }
             let state = node.state().to_string();

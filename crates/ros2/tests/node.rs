@@ -100,6 +100,17 @@ fn speed_caps_and_goal_tolerance_come_from_the_parameters() {
     n.on_odom(&odom(2.6, 0.0, 0.0), 0.1);
     n.tick(0.1);
     assert_eq!(*n.state(), NodeState::GoalReached);
+    // A stack's shared parameters file: the `/**` section and this node's apply (its own
+    // last), other nodes' sections are skipped.
+    let shared = "/**:\n  ros__parameters:\n    use_sim_time: true\n    max_linear: 0.3\n\
+                  controller_server:\n  ros__parameters:\n    controller_frequency: 20.0\n\
+                  rlnav_policy:\n  ros__parameters:\n    max_linear: 0.2\n    plan_topic: /plan\n";
+    let p = NodeParams::from_yaml("nav2_params.yaml", shared).unwrap();
+    assert!(p.use_sim_time);
+    assert_eq!(p.max_linear, Some(0.2));
+    let others = "controller_server:\n  ros__parameters:\n    a: 1\nplanner_server:\n  ros__parameters:\n    b: 2\n";
+    let e = NodeParams::from_yaml("nav2_params.yaml", others).unwrap_err().to_string();
+    assert!(e.contains("nav2_params.yaml") && e.contains("rlnav_policy") && e.contains("planner_server"), "{e}");
     for bad in ["scan_timeout: 0\n", "max_linear: -1\n", "goal: [.nan, 0]\n", "scan_topik: /x\n"] {
         let e = NodeParams::from_yaml("p.yaml", bad).unwrap_err().to_string();
         assert!(e.contains("p.yaml"), "{e}");

@@ -77,6 +77,13 @@ pub enum Command {
 }
 
 pub fn run(command: Command) -> Result<()> {
+    // RustDDS and ros2-client report what goes wrong on the wire (a QoS mismatch, a topic whose
+    // type differs, discovery trouble) through `log`; without a logger the user sees nothing.
+    env_logger::Builder::from_env(
+        env_logger::Env::default()
+            .default_filter_or("warn,rustdds::rtps::writer=error,rustdds::network::udp_listener=error"),
+    )
+    .init();
     match command {
         Command::Node { policy, contract, params, goal, dds } => {
             let (domain, reach) = dds.resolve()?;
