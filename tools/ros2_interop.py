@@ -1,11 +1,12 @@
 """Peers rlnav did not write, for the ROS 2 interoperability tests (crates/cli/tests/ros2.rs):
 a real rclpy node (ROS 2 Jazzy, Fast DDS) and an Eclipse Cyclone DDS participant.
 
-    python tools/ros2_interop.py MODE [--seconds S] [--goal X Y]
+    python tools/ros2_interop.py MODE [--seconds S] [--ns /NAMESPACE]
 
 Modes:
   rclpy-node    publish /scan and /odom, expect rlnav's node to answer on /cmd_vel, and find
                 rlnav_policy and its topics with their types in the ROS graph
+                (with --ns, the topics and the node in that namespace)
   rclpy-plan    as rclpy-node, for a node started without a goal: the goal comes as a
                 nav_msgs/Path on /plan (what Nav2's planner server publishes), and /odom is
                 published best effort (as a TurtleBot 4 does)
@@ -36,7 +37,7 @@ def result(ok, **fields):
 
 # ---------------------------------------------------------------- rclpy (ROS 2 Jazzy)
 
-def rclpy_node(seconds, plan=False):
+def rclpy_node(seconds, plan=False, ns=""):
     import rclpy
     from geometry_msgs.msg import PoseStamped, Twist
     from nav_msgs.msg import Odometry, Path
@@ -45,12 +46,12 @@ def rclpy_node(seconds, plan=False):
 
     rclpy.init()
     node = rclpy.create_node("interop_robot")
-    scan_pub = node.create_publisher(LaserScan, "/scan", qos_profile_sensor_data)
+    scan_pub = node.create_publisher(LaserScan, ns + "/scan", qos_profile_sensor_data)
     # In plan mode odometry goes out best effort, as a TurtleBot 4 publishes it.
-    odom_pub = node.create_publisher(Odometry, "/odom", qos_profile_sensor_data if plan else 10)
-    plan_pub = node.create_publisher(Path, "/plan", 10)
+    odom_pub = node.create_publisher(Odometry, ns + "/odom", qos_profile_sensor_data if plan else 10)
+    plan_pub = node.create_publisher(Path, ns + "/plan", 10)
     got = []
-    node.create_subscription(Twist, "/cmd_vel", lambda m: got.append((m.linear.x, m.angular.z)), 10)
+    node.create_subscription(Twist, ns + "/cmd_vel", lambda m: got.append((m.linear.x, m.angular.z)), 10)
     graph = {"node": False, "cmd_vel_type": None, "scan_type": None, "plan_type": None}
     end = time.time() + seconds
     while time.time() < end:
@@ -79,13 +80,13 @@ def rclpy_node(seconds, plan=False):
             plan_pub.publish(p)
         rclpy.spin_once(node, timeout_sec=0.1)
         names = node.get_node_names_and_namespaces()
-        graph["node"] = graph["node"] or any(n == "rlnav_policy" for n, _ in names)
+        graph["node"] = graph["node"] or any(n == "rlnav_policy" and (space.rstrip("/") == ns) for n, space in names)
         for name, types in node.get_topic_names_and_types():
-            if name == "/cmd_vel":
+            if name == ns + "/cmd_vel":
                 graph["cmd_vel_type"] = types
-            if name == "/scan":
+            if name == ns + "/scan":
                 graph["scan_type"] = types
-            if name == "/plan":
+            if name == ns + "/plan":
                 graph["plan_type"] = types
         moving = [g for g in got if g[0] > 0.05]
         if len(moving) >= 5 and graph["node"] and graph["cmd_vel_type"]:
@@ -328,6 +329,7 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("mode", choices=["rclpy-node", "rclpy-plan", "rclpy-sim", "cyclone-node", "cyclone-sim"])
     ap.add_argument("--seconds", type=float, default=30.0)
+    ap.add_argument("--ns", default="", help="the rlnav node's namespace (rclpy-node), e.g. /robot1")
     a = ap.parse_args()
-    {"rclpy-node": rclpy_node, "rclpy-sim": rclpy_sim, "cyclone-node": cyclone_node,
+    {"rclpy-node": lambda t: rclpy_node(t, ns=a.ns), "rclpy-sim": rclpy_sim, "cyclone-node": cyclone_node,
      "cyclone-sim": cyclone_sim, "rclpy-plan": lambda t: rclpy_node(t, plan=True)}[a.mode](a.seconds)

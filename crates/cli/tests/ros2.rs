@@ -84,12 +84,18 @@ fn interop(mode: &str, rlnav_args: &str, domain: u16) -> Option<(serde_json::Val
         eprintln!("RLNAV_ROS_PYTHON not set: skipping the {mode} interoperability test (.ci/run sets it)");
         return None;
     };
+    // Loopback only; ROS arguments, which take everything after them, come last.
+    let rlnav_args = match rlnav_args.split_once(" --ros-args") {
+        Some((ours, ros)) => format!("{ours} --localhost --ros-args{ros}"),
+        None => format!("{rlnav_args} --localhost"),
+    };
     let script = format!(
-        "timeout 90 '{BIN}' ros2 {rlnav_args} --localhost > rlnav.out & N=$!\n\
+        "timeout 90 '{BIN}' ros2 {rlnav_args} > rlnav.out & N=$!\n\
          timeout 80 '{python}' tools/ros2_interop.py {mode} --seconds 60; R=$?\n\
          kill -INT $N 2>/dev/null; wait $N; echo; cat rlnav.out; exit $R"
     );
-    let dir = std::env::temp_dir().join(format!("rlnav-interop-{mode}-{}", std::process::id()));
+    let dir =
+        std::env::temp_dir().join(format!("rlnav-interop-{}-{}", mode.replace([' ', '/'], "_"), std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let script = format!("cd '{}'\n{}", dir.display(), script.replace("tools/", &format!("{ROOT}/tools/")));
     let (ok, stdout, stderr) = run_script(&script, domain);
@@ -120,6 +126,18 @@ fn rclpy_plan_drives_a_node_that_has_no_goal() {
     if let Some((v, _)) = interop("rclpy-plan", &node, 67) {
         assert!(v["moving"].as_u64().unwrap() >= 5, "{v}");
         assert_eq!(v["graph"]["plan_type"][0], "nav_msgs/msg/Path");
+    }
+}
+
+/// `--ros-args -r __ns:=/robot1`, as a launch file starts one of several robots' nodes: the
+/// node is on the graph in the namespace, reads `/robot1/scan` and `/robot1/odom` and
+/// commands `/robot1/cmd_vel`.
+#[test]
+fn rclpy_drives_a_namespaced_node() {
+    let node = format!("node --policy {ROOT}/{POLICY} --goal 3 0 --ros-args -r __ns:=/robot1");
+    if let Some((v, _)) = interop("rclpy-node --ns /robot1", &node, 69) {
+        assert_eq!(v["graph"]["cmd_vel_type"][0], "geometry_msgs/msg/Twist");
+        assert_eq!(v["graph"]["node"], true);
     }
 }
 

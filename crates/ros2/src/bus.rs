@@ -98,16 +98,23 @@ pub struct Bus {
 }
 
 impl Bus {
-    /// Joins `domain` as node `name` (e.g. `rlnav_policy`), restricted as `reach` says.
+    /// Joins `domain` as node `name` (e.g. `rlnav_policy`) in the root namespace, restricted as
+    /// `reach` says.
     pub fn new(name: &str, domain: u16, reach: Reach) -> Result<Self, BusError> {
+        Self::in_namespace("/", name, domain, reach)
+    }
+
+    /// Like [`Bus::new`], for a node in `namespace` (`/robot1`; empty or `/`: the root).
+    pub fn in_namespace(namespace: &str, name: &str, domain: u16, reach: Reach) -> Result<Self, BusError> {
+        let namespace = if namespace.is_empty() { "/" } else { namespace };
         let mut b = rustdds::DomainParticipantBuilder::new(domain);
         if reach == Reach::Localhost {
             b = b.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
         }
         let participant = b.build().map_err(|e| create("participant")(e.to_string()))?;
         let context = Context::from_domain_participant(participant).map_err(|e| create("context")(e.to_string()))?;
-        let node_name =
-            NodeName::new("/", name).map_err(|e| create(format!("node name `{name}`"))(format!("{e:?}")))?;
+        let node_name = NodeName::new(namespace, name)
+            .map_err(|e| create(format!("node name `{namespace}/{name}`"))(format!("{e:?}")))?;
         let mut node = context
             .new_node(node_name, NodeOptions::new().enable_rosout(true))
             .map_err(|e| create("node")(format!("{e:?}")))?;

@@ -4,10 +4,12 @@
 //!   messages (from `rlnav-msgs`, which the benchmark's MCAP recordings share);
 //! - [`bus`]: the thin layer over DDS (participant, QoS, typed endpoints);
 //! - [`node`]: the policy node that drives a robot (`rlnav ros2 node`);
+//! - [`ros_args`]: ROS 2's `--ros-args` (remapping, namespaces, parameters);
 //! - [`bridge`]: the simulator as a ROS 2 robot (`rlnav ros2 sim`).
 
 pub mod bridge;
 pub mod bus;
 pub mod node;
+pub mod ros_args;
 
 pub use rlnav_msgs::{msg, sim_topics};

@@ -8,6 +8,7 @@
 
 use crate::bus::{Bus, BusError, Qos, Reach, drain};
 use crate::msg::{self, LaserScan, Odometry, Path as PlanMsg, PoseStamped, StringMsg, TFMessage, Time, TwistStamped};
+use crate::ros_args::RosArgs;
 use rlnav_policy::PolicyRunner;
 use rlnav_sim::config::{ConfigError, Invalid, Validate, check_positive};
 use rlnav_sim::{Controller, Pose2, RobotObservation, Twist, Vec2, wrap_angle};
@@ -67,6 +68,13 @@ pub struct NodeParams {
     /// Stamp stamped commands with the simulator's time from `/clock` (ROS's `use_sim_time`).
     /// Timeouts are judged on the node's own clock by arrival either way.
     pub use_sim_time: bool,
+    /// The node's namespace (`-r __ns:=/robot1`; empty: the root): relative topic names
+    /// resolve under it. Not a parameter.
+    #[serde(skip)]
+    pub namespace: String,
+    /// The node's name (`-r __node:=NAME`; empty: `rlnav_policy`). Not a parameter.
+    #[serde(skip)]
+    pub node_name: String,
 }
 
 /// When the node computes a command.
@@ -82,17 +90,17 @@ pub enum Trigger {
 impl Default for NodeParams {
     fn default() -> Self {
         Self {
-            scan_topic: "/scan".into(),
-            odom_topic: "/odom".into(),
+            scan_topic: "scan".into(),
+            odom_topic: "odom".into(),
             pose_topic: String::new(),
-            goal_topic: "/goal_pose".into(),
-            plan_topic: "/plan".into(),
+            goal_topic: "goal_pose".into(),
+            plan_topic: "plan".into(),
             lookahead: None,
             tf_topic: "/tf".into(),
-            cmd_vel_topic: "/cmd_vel".into(),
+            cmd_vel_topic: "cmd_vel".into(),
             cmd_vel_stamped: false,
             base_frame: "base_link".into(),
-            status_topic: "/rlnav/status".into(),
+            status_topic: "rlnav/status".into(),
             goal: None,
             goal_tolerance: None,
             max_linear: None,
@@ -102,6 +110,8 @@ impl Default for NodeParams {
             lidar_yaw_offset: 0.0,
             trigger: Trigger::Timer,
             use_sim_time: false,
+            namespace: String::new(),
+            node_name: String::new(),
         }
     }
 }
@@ -122,48 +132,131 @@ impl NodeParams {
     /// nodes' sections are skipped. A file of one section for another name is taken as this
     /// node's (a launch file may rename it).
     pub fn from_yaml(source: &str, text: &str) -> Result<Self, ConfigError> {
-        use serde_norway::{Mapping, Value};
-        let parse = |e: serde_norway::Error| ConfigError::Parse { file: source.to_string(), message: e.to_string() };
-        let value: Value = serde_norway::from_str(text).map_err(parse)?;
-        let sections: Vec<(String, &Mapping)> = value
-            .as_mapping()
-            .map(|m| {
-                m.iter()
-                    .filter_map(|(k, v)| Some((k.as_str()?.to_string(), v.get("ros__parameters")?.as_mapping()?)))
-                    .collect()
-            })
-            .unwrap_or_default();
-        let flat = if sections.is_empty() {
-            value
-        } else {
-            let ours = |k: &str| matches!(k, "/**" | "**" | "rlnav_policy" | "/rlnav_policy");
-            let mut picked: Vec<&(String, &Mapping)> = sections.iter().filter(|(k, _)| ours(k)).collect();
-            // Wildcards first, so that this node's own section overrides them.
-            picked.sort_by_key(|(k, _)| !k.ends_with("**"));
-            if picked.is_empty() && sections.len() == 1 {
-                picked.push(&sections[0]);
-            }
-            if picked.is_empty() {
-                let names: Vec<&str> = sections.iter().map(|(k, _)| k.as_str()).collect();
-                return Err(ConfigError::Parse {
-                    file: source.to_string(),
-                    message: format!(
-                        "no parameters for rlnav_policy: expected a `rlnav_policy:` or `/**:` section, found {}",
-                        names.join(", ")
-                    ),
-                });
-            }
-            let mut merged = Mapping::new();
-            for (_, m) in picked {
-                for (k, v) in m.iter() {
-                    merged.insert(k.clone(), v.clone());
-                }
-            }
-            Value::Mapping(merged)
-        };
-        let flat = serde_norway::to_string(&flat).map_err(parse)?;
+        let flat = node_section(source, text, DEFAULT_NODE_NAME)?;
+        let flat = serde_norway::to_string(&flat)
+            .map_err(|e| ConfigError::Parse { file: source.to_string(), message: e.to_string() })?;
         rlnav_sim::config::from_yaml_str(source, &flat)
     }
+
+    /// These parameters under ROS 2 command-line arguments: parameters files (their `/**` and
+    /// this node's sections) then `-p NAME:=VALUE`, checked as a parameters file is; then
+    /// `__node`, `__ns` and topic remappings. Returns the remappings that matched none of the
+    /// node's topics (ROS passes launch-wide remappings to every node, so they are not errors).
+    pub fn with_ros_args(self, a: &RosArgs) -> Result<(Self, Vec<String>), ConfigError> {
+        use serde_norway::Value;
+        let source = "--ros-args";
+        let node_name = a.node_name.clone().unwrap_or_else(|| self.node().to_string());
+        let namespace = a.namespace.clone().unwrap_or_else(|| self.namespace.clone());
+        let parse =
+            |file: &str, e: serde_norway::Error| ConfigError::Parse { file: file.to_string(), message: e.to_string() };
+        let mut merged = match serde_norway::to_value(&self).map_err(|e| parse(source, e))? {
+            Value::Mapping(m) => m,
+            _ => unreachable!("parameters serialize to a mapping"),
+        };
+        for f in &a.params_files {
+            let file = f.display().to_string();
+            let text = std::fs::read_to_string(f).map_err(|error| ConfigError::Io { file: file.clone(), error })?;
+            if let Value::Mapping(m) = node_section(&file, &text, &node_name)? {
+                merged.extend(m);
+            }
+        }
+        for (name, value) in &a.params {
+            let v: Value = serde_norway::from_str(value).map_err(|e| parse(&format!("{source} -p {name}"), e))?;
+            merged.insert(Value::String(name.clone()), v);
+        }
+        let text = serde_norway::to_string(&Value::Mapping(merged)).map_err(|e| parse(source, e))?;
+        let mut p: Self = rlnav_sim::config::from_yaml_str(source, &text)?;
+        p.node_name = node_name;
+        p.namespace = namespace;
+        let mut unmatched = Vec::new();
+        for (from, to) in &a.remaps {
+            let target = p.topic(from);
+            let mut hit = false;
+            for t in p.topics_mut_by_resolved(&target) {
+                *t = to.clone();
+                hit = true;
+            }
+            if !hit {
+                unmatched.push(format!("{from}:={to}"));
+            }
+        }
+        Ok((p, unmatched))
+    }
+
+    /// The node's name (`rlnav_policy` unless renamed).
+    pub fn node(&self) -> &str {
+        if self.node_name.is_empty() { DEFAULT_NODE_NAME } else { &self.node_name }
+    }
+
+    /// The absolute name of one of the node's topics, resolved in its namespace.
+    pub fn topic(&self, name: &str) -> String {
+        crate::ros_args::resolve(&self.namespace, self.node(), name)
+    }
+
+    /// The topic parameters whose resolved name is `resolved`.
+    fn topics_mut_by_resolved(&mut self, resolved: &str) -> Vec<&mut String> {
+        let (ns, node) = (self.namespace.clone(), self.node().to_string());
+        [
+            &mut self.scan_topic,
+            &mut self.odom_topic,
+            &mut self.pose_topic,
+            &mut self.goal_topic,
+            &mut self.plan_topic,
+            &mut self.tf_topic,
+            &mut self.cmd_vel_topic,
+            &mut self.status_topic,
+        ]
+        .into_iter()
+        .filter(|t| !t.is_empty() && crate::ros_args::resolve(&ns, &node, t) == resolved)
+        .collect()
+    }
+}
+
+/// The node's name on the ROS graph unless `__node` renames it.
+pub const DEFAULT_NODE_NAME: &str = "rlnav_policy";
+
+/// The parameters for `node` in YAML text, as one flat mapping: the whole text when it is
+/// flat, else its `/**` and `node` sections of a ROS 2 parameters file (see
+/// [`NodeParams::from_yaml`]).
+fn node_section(source: &str, text: &str, node: &str) -> Result<serde_norway::Value, ConfigError> {
+    use serde_norway::{Mapping, Value};
+    let parse = |e: serde_norway::Error| ConfigError::Parse { file: source.to_string(), message: e.to_string() };
+    let value: Value = serde_norway::from_str(text).map_err(parse)?;
+    let sections: Vec<(String, &Mapping)> = value
+        .as_mapping()
+        .map(|m| {
+            m.iter()
+                .filter_map(|(k, v)| Some((k.as_str()?.to_string(), v.get("ros__parameters")?.as_mapping()?)))
+                .collect()
+        })
+        .unwrap_or_default();
+    if sections.is_empty() {
+        return Ok(value);
+    }
+    let ours = |k: &str| matches!(k, "/**" | "**") || k.trim_start_matches('/') == node;
+    let mut picked: Vec<&(String, &Mapping)> = sections.iter().filter(|(k, _)| ours(k)).collect();
+    // Wildcards first, so that this node's own section overrides them.
+    picked.sort_by_key(|(k, _)| !k.ends_with("**"));
+    if picked.is_empty() && sections.len() == 1 {
+        picked.push(&sections[0]);
+    }
+    if picked.is_empty() {
+        let names: Vec<&str> = sections.iter().map(|(k, _)| k.as_str()).collect();
+        return Err(ConfigError::Parse {
+            file: source.to_string(),
+            message: format!(
+                "no parameters for {node}: expected a `{node}:` or `/**:` section, found {}",
+                names.join(", ")
+            ),
+        });
+    }
+    let mut merged = Mapping::new();
+    for (_, m) in picked {
+        for (k, v) in m.iter() {
+            merged.insert(k.clone(), v.clone());
+        }
+    }
+    Ok(Value::Mapping(merged))
 }
 
 impl Validate for NodeParams {
@@ -191,11 +284,19 @@ impl Validate for NodeParams {
             ("odom_topic", &self.odom_topic),
             ("goal_topic", &self.goal_topic),
             ("plan_topic", &self.plan_topic),
+            ("tf_topic", &self.tf_topic),
             ("cmd_vel_topic", &self.cmd_vel_topic),
+            ("status_topic", &self.status_topic),
         ] {
-            if !t.starts_with('/') {
-                return Err(Invalid::new(k, "an absolute topic name, starting with `/`"));
+            if !crate::ros_args::valid_name(t) {
+                return Err(Invalid::new(
+                    k,
+                    format!("a topic name (absolute `/scan`, relative `scan` or private `~/scan`), got `{t}`"),
+                ));
             }
+        }
+        if !self.pose_topic.is_empty() && !crate::ros_args::valid_name(&self.pose_topic) {
+            return Err(Invalid::new("pose_topic", format!("a topic name or empty, got `{}`", self.pose_topic)));
         }
         Ok(())
     }
@@ -669,8 +770,23 @@ pub fn run_node(
     stop: Arc<AtomicBool>,
     mut on_command: impl FnMut(Twist, &NodeState),
 ) -> Result<(), BusError> {
-    let p = node.params.clone();
-    let mut bus = Bus::new("rlnav_policy", domain, reach)?;
+    let mut p = node.params.clone();
+    let mut bus = Bus::in_namespace(&p.namespace, p.node(), domain, reach)?;
+    // Every topic by its absolute name in the node's namespace.
+    for t in [
+        &mut p.scan_topic,
+        &mut p.odom_topic,
+        &mut p.goal_topic,
+        &mut p.plan_topic,
+        &mut p.tf_topic,
+        &mut p.cmd_vel_topic,
+        &mut p.status_topic,
+    ] {
+        *t = crate::ros_args::resolve(&node.params.namespace, node.params.node(), t);
+    }
+    if !p.pose_topic.is_empty() {
+        p.pose_topic = crate::ros_args::resolve(&node.params.namespace, node.params.node(), &p.pose_topic);
+    }
     let scan_sub = bus.subscription::<LaserScan>(&p.scan_topic, Qos::SensorData)?;
     // Odometry and poses are read best effort, which matches reliable and best-effort writers
     // alike (a TurtleBot 4 publishes /odom best effort; a reliable reader would never match it).

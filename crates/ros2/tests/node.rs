@@ -118,6 +118,72 @@ fn speed_caps_and_goal_tolerance_come_from_the_parameters() {
 }
 
 #[test]
+fn ros_args_set_parameters_names_and_namespace() {
+    use rlnav_ros2::ros_args::RosArgs;
+    let dir = std::env::temp_dir().join(format!("rlnav-ros-args-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("nav2_params.yaml");
+    std::fs::write(
+        &file,
+        "/**:\n  ros__parameters:\n    use_sim_time: true\n\
+         planner:\n  ros__parameters:\n    max_linear: 0.3\n    max_angular: 0.4\n\
+         rlnav_policy:\n  ros__parameters:\n    max_linear: 0.1\n",
+    )
+    .unwrap();
+    let args: Vec<String> = [
+        "-r",
+        "__ns:=/robot1",
+        "-r",
+        "__node:=planner",
+        "--params-file",
+        file.to_str().unwrap(),
+        "-p",
+        "max_angular:=0.25",
+        "-p",
+        "goal:=[3.0, 1.0]",
+        "-r",
+        "scan:=/front/scan",
+        "-r",
+        "/robot1/odom:=wheel_odom",
+        "-r",
+        "/tf:=tf",
+        "-r",
+        "/map:=map",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let ros = RosArgs::parse(&args).unwrap();
+    let (p, unmatched) = NodeParams::default().with_ros_args(&ros).unwrap();
+    // The file's `/**` and the renamed node's section apply, then -p.
+    assert!(p.use_sim_time);
+    assert_eq!((p.max_linear, p.max_angular, p.goal), (Some(0.3), Some(0.25), Some([3.0, 1.0])));
+    assert_eq!((p.node(), p.namespace.as_str()), ("planner", "/robot1"));
+    // Relative names resolve in the namespace; remappings match by resolved name.
+    assert_eq!(p.topic(&p.scan_topic), "/front/scan");
+    assert_eq!(p.topic(&p.odom_topic), "/robot1/wheel_odom");
+    assert_eq!(p.topic(&p.cmd_vel_topic), "/robot1/cmd_vel");
+    assert_eq!(p.topic(&p.tf_topic), "/robot1/tf");
+    assert_eq!(p.topic(&p.status_topic), "/robot1/rlnav/status");
+    assert_eq!(unmatched, vec!["/map:=map".to_string()]);
+    // Without arguments nothing changes: the root namespace, ROS's usual names.
+    let (d, none) = NodeParams::default().with_ros_args(&RosArgs::default()).unwrap();
+    assert!(none.is_empty());
+    assert_eq!(
+        (d.topic(&d.scan_topic), d.topic(&d.tf_topic), d.node()),
+        ("/scan".into(), "/tf".into(), "rlnav_policy")
+    );
+    // A bad value is named; so is a missing file.
+    let bad = RosArgs::parse(&["-p".to_string(), "max_linear:=-2".to_string()]).unwrap();
+    let e = NodeParams::default().with_ros_args(&bad).unwrap_err().to_string();
+    assert!(e.contains("--ros-args") && e.contains("max_linear"), "{e}");
+    let missing = RosArgs::parse(&["--params-file".to_string(), "nowhere.yaml".to_string()]).unwrap();
+    let e = NodeParams::default().with_ros_args(&missing).unwrap_err().to_string();
+    assert!(e.contains("nowhere.yaml"), "{e}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
 fn goals_in_other_frames_are_transformed_or_refused() {
     let mut n = node(NodeParams::default());
     n.on_odom(&odom(0.0, 0.0, 0.0), 0.0);

@@ -6,6 +6,7 @@ use clap::Subcommand;
 use rlnav_ros2::bridge::{BridgeOptions, SimBridge, bridge_setup, run_bridge};
 use rlnav_ros2::bus::{Reach, domain_from_env};
 use rlnav_ros2::node::{NodeParams, PolicyNode, run_node};
+use rlnav_ros2::ros_args::RosArgs;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -49,6 +50,11 @@ pub enum Command {
         goal: Option<Vec<f64>>,
         #[command(flatten)]
         dds: DdsArgs,
+        /// ROS 2 arguments, last, as `ros2 run` and launch files pass them: `-r scan:=/front/scan`,
+        /// `-r __ns:=/robot1`, `-r __node:=NAME`, `-p max_linear:=0.2`, `--params-file FILE`,
+        /// `--log-level LEVEL`.
+        #[arg(long = "ros-args", num_args = 0.., allow_hyphen_values = true, value_name = "ARG")]
+        ros_args: Option<Vec<String>>,
     },
     /// Run a scenario as a ROS 2 robot: /scan, /odom, /tf, /tf_static, /clock and /goal_pose
     /// out, /cmd_vel in. Prints each episode's figures as a JSON line.
@@ -76,16 +82,20 @@ pub enum Command {
     },
 }
 
+/// RustDDS and ros2-client report what goes wrong on the wire (a QoS mismatch, a topic whose
+/// type differs, discovery trouble) through `log`; without a logger the user sees nothing. Two
+/// RustDDS modules warn several times a second about normal loopback discovery: errors only.
+fn init_logger(level: Option<String>) {
+    let default = level.unwrap_or_else(|| "warn".into());
+    let filter = format!("{default},rustdds::rtps::writer=error,rustdds::network::udp_listener=error");
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(filter)).init();
+}
+
 pub fn run(command: Command) -> Result<()> {
-    // RustDDS and ros2-client report what goes wrong on the wire (a QoS mismatch, a topic whose
-    // type differs, discovery trouble) through `log`; without a logger the user sees nothing.
-    env_logger::Builder::from_env(
-        env_logger::Env::default()
-            .default_filter_or("warn,rustdds::rtps::writer=error,rustdds::network::udp_listener=error"),
-    )
-    .init();
     match command {
-        Command::Node { policy, contract, params, goal, dds } => {
+        Command::Node { policy, contract, params, goal, dds, ros_args } => {
+            let ros = RosArgs::parse(&ros_args.unwrap_or_default())?;
+            init_logger(ros.log_filter());
             let (domain, reach) = dds.resolve()?;
             let mut p = match &params {
                 Some(f) => NodeParams::from_file(f)?,
@@ -93,6 +103,10 @@ pub fn run(command: Command) -> Result<()> {
             };
             if let Some(g) = goal {
                 p.goal = Some([g[0], g[1]]);
+            }
+            let (p, unmatched) = p.with_ros_args(&ros)?;
+            for r in unmatched {
+                eprintln!("[{}] remapping {r} matches none of the node's topics", p.node());
             }
             let runner = rlnav_policy::PolicyRunner::load(&policy, contract.as_deref())?;
             let c = runner.contract();
@@ -103,14 +117,15 @@ pub fn run(command: Command) -> Result<()> {
                 c.scan.angle_min,
                 c.scan.angle_max,
                 c.control_period,
-                p.scan_topic,
-                p.cmd_vel_topic
+                p.topic(&p.scan_topic),
+                p.topic(&p.cmd_vel_topic)
             );
             let node = PolicyNode::new(runner, p);
             run_node(node, domain, reach, stop_flag()?, |_, _| {})?;
             Ok(())
         }
         Command::Sim { scenario, robot, seed, episodes, rate, cmd_vel_stamped, dds } => {
+            init_logger(None);
             let (domain, reach) = dds.resolve()?;
             anyhow::ensure!(rate.is_finite() && rate > 0.0, "--rate must be positive");
             let setup = bridge_setup(&scenario, robot.as_deref())?;
