@@ -102,13 +102,13 @@ def rclpy_node(seconds, plan=False, ns=""):
 def rclpy_sim(seconds):
     import rclpy
     from geometry_msgs.msg import PoseStamped, Twist
-    from nav_msgs.msg import Odometry
-    from rclpy.qos import qos_profile_sensor_data
+    from nav_msgs.msg import OccupancyGrid, Odometry
+    from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
     from sensor_msgs.msg import LaserScan
 
     rclpy.init()
     node = rclpy.create_node("interop_driver")
-    seen = {"scan": 0, "odom": 0, "goal": 0, "beams": None, "scan_frame": None, "odom_frames": None}
+    seen = {"scan": 0, "odom": 0, "goal": 0, "beams": None, "scan_frame": None, "odom_frames": None, "map": None}
     state = {"pose": None, "goal": None}
 
     def on_scan(m):
@@ -126,9 +126,20 @@ def rclpy_sim(seconds):
         seen["goal"] += 1
         state["goal"] = (m.pose.position.x, m.pose.position.y)
 
+    def on_map(m):
+        data = list(m.data)
+        seen["map"] = {
+            "frame": m.header.frame_id, "width": m.info.width, "height": m.info.height,
+            "resolution": round(m.info.resolution, 4), "cells": len(data),
+            "occupied": sum(1 for v in data if v == 100), "free": sum(1 for v in data if v == 0),
+        }
+
     node.create_subscription(LaserScan, "/scan", on_scan, qos_profile_sensor_data)
     node.create_subscription(Odometry, "/odom", on_odom, 10)
     node.create_subscription(PoseStamped, "/goal_pose", on_goal, 10)
+    # As RViz2 and Nav2 subscribe to /map: transient local, so a late joiner gets it.
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    node.create_subscription(OccupancyGrid, "/map", on_map, latched)
     cmd = node.create_publisher(Twist, "/cmd_vel", 10)
     end = time.time() + seconds
     closest = math.inf
@@ -156,6 +167,9 @@ def rclpy_sim(seconds):
     ok = seen["beams"] == BEAMS and seen["scan_frame"] == "laser" and seen["odom_frames"] == ["odom", "base_link"]
     # The bridge ends the episode inside its goal tolerance (0.3 m), one step before or after.
     ok = ok and closest < 0.4
+    m = seen["map"]
+    ok = ok and m is not None and m["frame"] == "map" and m["cells"] == m["width"] * m["height"]
+    ok = ok and m["occupied"] > 0 and m["free"] > m["occupied"]
     result(ok, peer="rclpy", closest=closest, **seen)
 
 

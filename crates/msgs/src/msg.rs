@@ -54,6 +54,7 @@ fn definition_of(full_name: &str) -> Option<&'static str> {
         "geometry_msgs/msg/Transform" => Transform::DEFINITION,
         "geometry_msgs/msg/TransformStamped" => TransformStamped::DEFINITION,
         "geometry_msgs/msg/PoseStamped" => PoseStamped::DEFINITION,
+        "nav_msgs/msg/MapMetaData" => MapMetaData::DEFINITION,
         _ => return None,
     })
 }
@@ -501,6 +502,58 @@ ros_message!(
         "geometry_msgs/msg/Quaternion"
     ],
     "geometry_msgs/TransformStamped[] transforms\n"
+);
+
+/// `nav_msgs/MapMetaData`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MapMetaData {
+    /// When the map was loaded.
+    pub map_load_time: Time,
+    /// Cell size (m).
+    pub resolution: f32,
+    /// Cells along x.
+    pub width: u32,
+    /// Cells along y.
+    pub height: u32,
+    /// Pose of cell (0, 0)'s lower-left corner in the map frame.
+    pub origin: Pose,
+}
+ros_message!(
+    MapMetaData,
+    "nav_msgs",
+    "MapMetaData",
+    [
+        "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/Pose",
+        "geometry_msgs/msg/Point",
+        "geometry_msgs/msg/Quaternion"
+    ],
+    "builtin_interfaces/Time map_load_time\nfloat32 resolution\nuint32 width\nuint32 height\ngeometry_msgs/Pose origin\n"
+);
+
+/// `nav_msgs/OccupancyGrid`: a map, as `map_server` publishes it on `/map`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct OccupancyGrid {
+    /// Header (frame `map`).
+    pub header: Header,
+    /// Size, resolution and origin.
+    pub info: MapMetaData,
+    /// Row-major from cell (0, 0): 0 free, 100 occupied, -1 unknown.
+    pub data: Vec<i8>,
+}
+ros_message!(
+    OccupancyGrid,
+    "nav_msgs",
+    "OccupancyGrid",
+    [
+        "std_msgs/msg/Header",
+        "builtin_interfaces/msg/Time",
+        "nav_msgs/msg/MapMetaData",
+        "geometry_msgs/msg/Pose",
+        "geometry_msgs/msg/Point",
+        "geometry_msgs/msg/Quaternion"
+    ],
+    "std_msgs/Header header\nMapMetaData info\nint8[] data\n"
 );
 
 /// `rosgraph_msgs/Clock`.

@@ -3,10 +3,11 @@
 //! benchmark writes them to MCAP, so a recording and a live run carry the same bytes.
 
 use crate::msg::{
-    self, Covariance, Header, LaserScan, Odometry, Pose, PoseStamped, PoseWithCovariance, TFMessage, Time,
-    TransformStamped, TwistWithCovariance,
+    self, Covariance, Header, LaserScan, MapMetaData, OccupancyGrid, Odometry, Pose, PoseStamped, PoseWithCovariance,
+    TFMessage, Time, TransformStamped, TwistWithCovariance,
 };
-use rlnav_sim::{LidarSpec, NavEnv, Pose2, Twist, Vec2};
+use rlnav_sim::map::Cell;
+use rlnav_sim::{LidarSpec, NavEnv, Pose2, Twist, Vec2, World};
 
 /// The frame names of REP-105, as a robot's URDF and driver name them.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -106,6 +107,55 @@ pub fn goal_message(goal: Vec2, stamp: Time, frame: &str) -> PoseStamped {
     PoseStamped { header: Header::new(stamp, frame), pose: Pose::planar(goal.x as f64, goal.y as f64, 0.0) }
 }
 
+/// The static world as `nav_msgs/OccupancyGrid` in `frame` (`map`, which the bridge puts at
+/// the odometry origin), as `map_server` would serve it. A map scenario's grid is sent as it is
+/// (free 0, occupied 100, unknown -1), with any shape obstacles on it drawn in; a world of
+/// shapes is drawn at 5 cm over its bounds plus 0.25 m (coarser for worlds over 200 m), a cell
+/// occupied when an obstacle comes within its circumscribed circle (so no obstacle is missed).
+pub fn map_message(world: &World, stamp: Time, frame: &str) -> OccupancyGrid {
+    let (width, height, resolution, origin) = match world.grid() {
+        Some(g) => {
+            let (w, h) = g.size();
+            (w, h, g.resolution(), g.origin())
+        }
+        None => {
+            let b = world.tight_bounds();
+            let (min, size) = (b.min - Vec2::splat(0.25), b.size() + Vec2::splat(0.5));
+            let resolution = (size.x.max(size.y) / 4000.0).max(0.05);
+            let cells = |v: f32| ((v / resolution).ceil() as usize).max(1);
+            (cells(size.x), cells(size.y), resolution, Pose2::new(min.x, min.y, 0.0))
+        }
+    };
+    let has_shapes = !world.obstacles().is_empty();
+    // Anything within the circumscribed circle may touch the cell.
+    let reach = 0.5 * resolution * std::f32::consts::SQRT_2;
+    let mut data = Vec::with_capacity(width * height);
+    for iy in 0..height {
+        for ix in 0..width {
+            let centre = origin.to_parent(Vec2::new((ix as f32 + 0.5) * resolution, (iy as f32 + 0.5) * resolution));
+            let from_grid = world.grid().map(|g| match g.cell(ix, iy) {
+                Cell::Free => 0,
+                Cell::Occupied => 100,
+                Cell::Unknown => -1,
+            });
+            let shape_near =
+                has_shapes && world.obstacles().iter().any(|o| o.primitive.signed_distance(centre) <= reach);
+            data.push(if shape_near { 100 } else { from_grid.unwrap_or(0) });
+        }
+    }
+    OccupancyGrid {
+        header: Header::new(stamp, frame),
+        info: MapMetaData {
+            map_load_time: stamp,
+            resolution,
+            width: width as u32,
+            height: height as u32,
+            origin: Pose::planar(origin.x as f64, origin.y as f64, origin.yaw as f64),
+        },
+        data,
+    }
+}
+
 impl SimMessages {
     /// The messages for the environment's current state at time `t` (s).
     pub fn of(env: &NavEnv, t: f64, frames: &Frames) -> Self {
@@ -128,6 +178,43 @@ impl SimMessages {
 mod tests {
     use super::*;
     use std::sync::Arc;
+
+    #[test]
+    fn the_world_as_a_map() {
+        // Shapes: drawn at 5 cm; the room's walls and a cylinder are there, the start is free.
+        let setup = Arc::new(rlnav_sim::task::EnvSetup::from_scenario_name("static-room").unwrap());
+        let env = NavEnv::new(setup.clone(), 3).unwrap();
+        let m = map_message(env.world(), Time::default(), "map");
+        assert_eq!(m.header.frame_id, "map");
+        assert_eq!(m.info.resolution, 0.05);
+        let (w, h) = (m.info.width as usize, m.info.height as usize);
+        assert_eq!(m.data.len(), w * h);
+        let at = |p: Vec2| {
+            let (ox, oy) = (m.info.origin.position.x as f32, m.info.origin.position.y as f32);
+            let (ix, iy) = (((p.x - ox) / 0.05) as usize, ((p.y - oy) / 0.05) as usize);
+            m.data[iy * w + ix]
+        };
+        assert_eq!(at(env.pose().position()), 0, "the robot starts in free space");
+        let occupied = m.data.iter().filter(|v| **v == 100).count();
+        assert!(occupied > 0 && occupied < w * h / 2, "{occupied} of {}", w * h);
+        let wall = env.world().tight_bounds().min + Vec2::splat(0.01);
+        assert_eq!(at(wall), 100, "the arena's corner");
+        // A map scenario: the grid as it is, unknown cells included.
+        let setup = Arc::new(rlnav_sim::task::EnvSetup::from_scenario_name("warehouse").unwrap());
+        let env = NavEnv::new(setup, 3).unwrap();
+        let g = env.world().grid().unwrap();
+        let m = map_message(env.world(), Time::default(), "map");
+        assert_eq!((m.info.width as usize, m.info.height as usize), g.size());
+        assert_eq!(m.data[0], -1, "outside the building is unknown");
+        let expect = |c: Cell| match c {
+            Cell::Free => 0,
+            Cell::Occupied => 100,
+            Cell::Unknown => -1,
+        };
+        for (i, v) in m.data.iter().enumerate() {
+            assert_eq!(*v, expect(g.cell(i % g.size().0, i / g.size().0)), "cell {i}");
+        }
+    }
 
     #[test]
     fn messages_describe_the_simulated_robot() {

@@ -3,7 +3,10 @@
 //! policy). The node runs with `trigger: scan`; a robot stand-in publishes a 10 Hz scan and
 //! odometry and timestamps each `/cmd_vel` it receives against the last scan it sent.
 //!
-//! cargo run --release -p rlnav-ros2 --example scan_to_cmd_latency -- [POLICY] [SCANS]
+//! With `plan`, the goal comes as a 200-pose plan on `/plan` (plan following on) instead of
+//! a fixed goal.
+//!
+//! cargo run --release -p rlnav-ros2 --example scan_to_cmd_latency -- [POLICY] [SCANS] [plan]
 
 use rlnav_policy::PolicyRunner;
 use rlnav_ros2::bus::{Bus, Qos, Reach, drain};
@@ -17,9 +20,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let policy = args.get(1).map_or("policies/jetbot-static-mlp.onnx", String::as_str);
     let scans: usize = args.get(2).map_or(Ok(200), |s| s.parse())?;
+    let with_plan = args.get(3).is_some_and(|a| a == "plan");
     let domain = 77;
     let runner = PolicyRunner::load(std::path::Path::new(policy), None)?;
-    let params = NodeParams { goal: Some([30.0, 0.0]), trigger: Trigger::Scan, ..Default::default() };
+    let goal = if with_plan { None } else { Some([30.0, 0.0]) };
+    let params = NodeParams { goal, trigger: Trigger::Scan, ..Default::default() };
     let stop = Arc::new(AtomicBool::new(false));
     let node_stop = stop.clone();
     let node = std::thread::spawn(move || {
@@ -30,6 +35,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let scan_pub = bus.publisher::<LaserScan>("/scan", Qos::SensorData)?;
     let odom_pub = bus.publisher::<Odometry>("/odom", Qos::Default)?;
     let cmd_sub = bus.subscription::<Twist>("/cmd_vel", Qos::Default)?;
+    let plan_pub = bus.publisher::<Path>("/plan", Qos::Default)?;
+    // A winding 30 m plan of 200 poses, as a planner server sends one.
+    let plan = Path {
+        header: Header::new(Time::default(), "odom"),
+        poses: (0..200)
+            .map(|i| {
+                let x = i as f64 * 0.15;
+                let pose = Pose::planar(x, 0.5 * (x * 0.4).sin(), 0.0);
+                PoseStamped { header: Header::new(Time::default(), "odom"), pose }
+            })
+            .collect(),
+    };
     let inc = std::f32::consts::TAU / 360.0;
     let scan = LaserScan {
         header: Header::new(Time::default(), "laser"),
@@ -53,6 +70,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut latencies = Vec::new();
     let mut dropped = 0;
     for k in 0..scans + 20 {
+        if with_plan && k % 10 == 0 {
+            // Replanned once a second, as Nav2's default behaviour tree does.
+            let _ = plan_pub.publish(plan.clone());
+        }
         let _ = odom_pub.publish(odom.clone());
         std::thread::sleep(Duration::from_millis(5));
         drain(&cmd_sub, &mut dropped);

@@ -1,17 +1,24 @@
 //! `rlnav ros2 sim`: the simulator as a ROS 2 robot, the part Gazebo plays in the reference
 //! article. It runs a scenario in real time (or faster, with `/clock`), publishes `/scan`,
-//! `/odom`, `/tf` (odom -> base_link), `/tf_static` (base_link -> laser), `/clock` and the
-//! scenario's goal on `/goal_pose`, and drives the robot with what arrives on `/cmd_vel`.
+//! `/odom`, `/tf` (odom -> base_link), `/tf_static` (map -> odom, base_link -> laser), `/clock`,
+//! the world on `/map` (transient local, as `map_server` serves it) and the scenario's goal on
+//! `/goal_pose`, and drives the robot with what arrives on `/cmd_vel`.
 //! [`SimBridge`] is the logic without DDS; [`run_bridge`] puts it on the wire.
 
 use crate::bus::{Bus, BusError, Qos, Reach, drain};
-use crate::msg::{self, Clock, LaserScan, Odometry, PoseStamped, StringMsg, TFMessage, TwistStamped};
-use crate::sim_topics::{Frames, SimMessages, tf_message};
+use crate::msg::{
+    self, Clock, LaserScan, OccupancyGrid, Odometry, PoseStamped, StringMsg, TFMessage, TransformStamped, TwistStamped,
+};
+use crate::sim_topics::{Frames, SimMessages, map_message, tf_message};
 use rlnav_sim::task::{ActionConfig, EnvSetup, SimError, TaskConfig};
 use rlnav_sim::{EpisodeStats, NavEnv, RobotSpec, ScenarioSpec, Twist};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
+
+/// The frame of `/map`, which the bridge puts at the odometry origin (a perfectly localised
+/// robot: `map -> odom` is the identity).
+pub const MAP_FRAME: &str = "map";
 
 /// How the bridge runs.
 #[derive(Clone, Debug)]
@@ -134,6 +141,11 @@ pub fn run_bridge(
     let clock_pub = bus.publisher::<Clock>("/clock", Qos::Default)?;
     let goal_pub = bus.publisher::<PoseStamped>("/goal_pose", Qos::Default)?;
     let episode_pub = bus.publisher::<StringMsg>("/rlnav/sim/episode", Qos::Default)?;
+    let map_pub = bus.publisher::<OccupancyGrid>("/map", Qos::Latched)?;
+    // The world as a map, at the start and whenever an episode brings a new one.
+    let publish_map = |b: &SimBridge| {
+        let _ = map_pub.publish(map_message(b.env().world(), b.messages().stamp, MAP_FRAME));
+    };
     let twist_sub =
         if opts.cmd_vel_stamped { None } else { Some(bus.subscription::<msg::Twist>("/cmd_vel", Qos::Default)?) };
     let stamped_sub =
@@ -156,7 +168,10 @@ pub fn run_bridge(
         }
     };
     let statics = tf_message(Default::default(), mount, msg::Time::default(), &opts.frames);
-    let _ = tf_static_pub.publish(TFMessage { transforms: vec![statics.transforms[1].clone()] });
+    // One message with both: a late joiner of a keep-last-1 topic gets only the last one.
+    let map_to_odom = TransformStamped::planar(msg::Time::default(), MAP_FRAME, &opts.frames.odom, 0.0, 0.0, 0.0);
+    let _ = tf_static_pub.publish(TFMessage { transforms: vec![map_to_odom, statics.transforms[1].clone()] });
+    publish_map(&bridge);
     publish(&bridge, true);
     while !stop.load(Ordering::Relaxed) && (opts.episodes == 0 || done < opts.episodes) {
         next += wall_period;
@@ -182,6 +197,7 @@ pub fn run_bridge(
             let json = serde_json::to_string(&stats).unwrap_or_default();
             let _ = episode_pub.publish(StringMsg { data: json });
             on_episode(&stats);
+            publish_map(&bridge);
         }
         publish(&bridge, goal_due);
         let now = Instant::now();

@@ -62,9 +62,26 @@ impl World {
         &self.rays
     }
 
-    /// A rectangle containing every obstacle.
+    /// A rectangle containing every obstacle (from their bounding circles: quick, loose).
     pub fn bounds(&self) -> Rect {
         self.bounds
+    }
+
+    /// The smallest axis-aligned rectangle containing every obstacle and the grid's known
+    /// cells (zero-size at the origin for an empty world).
+    pub fn tight_bounds(&self) -> Rect {
+        let mut min = Vec2::splat(f32::INFINITY);
+        let mut max = Vec2::splat(f32::NEG_INFINITY);
+        for o in &self.obstacles {
+            let b = o.shape.compute_aabb(&o.pose);
+            min = min.min(Vec2::new(b.mins.x, b.mins.y));
+            max = max.max(Vec2::new(b.maxs.x, b.maxs.y));
+        }
+        if let Some(g) = &self.grid {
+            let k = g.known_bounds();
+            (min, max) = (min.min(k.min), max.max(k.max));
+        }
+        if min.x > max.x { Rect { min: Vec2::ZERO, max: Vec2::ZERO } } else { Rect { min, max } }
     }
 
     /// Whether the footprint at `pose` touches or overlaps any obstacle. Bounding circles
