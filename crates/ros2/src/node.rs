@@ -756,6 +756,49 @@ impl PolicyNode {
     }
 }
 
+/// Notices an input topic that stays silent: a wrong name, a QoS the publisher does not offer
+/// (RustDDS reports incompatible QoS to the reader, not to the log) or a driver that is not
+/// running all look alike to the node, which only stops with "no scan yet". After `after`
+/// seconds without a message it says so once, with what to check; when messages come, it says
+/// that too.
+#[derive(Clone, Debug)]
+pub struct SilenceWatch {
+    topic: String,
+    after: f64,
+    last: f64,
+    reported: bool,
+}
+
+impl SilenceWatch {
+    /// Watches `topic` from time `now` (s).
+    pub fn new(topic: &str, after: f64, now: f64) -> Self {
+        Self { topic: topic.to_string(), after, last: now, reported: false }
+    }
+
+    /// `arrived`: whether messages came since the last call. Returns a line to log, if any.
+    pub fn check(&mut self, arrived: bool, now: f64) -> Option<String> {
+        if arrived {
+            self.last = now;
+            if std::mem::take(&mut self.reported) {
+                return Some(format!("{}: messages arriving", self.topic));
+            }
+            return None;
+        }
+        if !self.reported && now - self.last >= self.after {
+            self.reported = true;
+            return Some(format!(
+                "nothing on {} for {:.0} s: check that it is published under this name \
+                 (`ros2 topic list`) and that its publisher's QoS matches (`ros2 topic info -v {}`)",
+                self.topic, self.after, self.topic
+            ));
+        }
+        None
+    }
+}
+
+/// How long an input topic may stay silent before the node says so (s).
+pub const SILENCE_REPORT_S: f64 = 3.0;
+
 /// The node's clock: wall time since it started (it does not follow `/clock`).
 fn now_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64()
@@ -837,6 +880,9 @@ pub fn run_node(
     }
     let period = node.control_period();
     let start = Instant::now();
+    let mut scan_watch = SilenceWatch::new(&p.scan_topic, SILENCE_REPORT_S, 0.0);
+    let pose_topic = if p.pose_topic.is_empty() { &p.odom_topic } else { &p.pose_topic };
+    let mut pose_watch = SilenceWatch::new(pose_topic, SILENCE_REPORT_S, 0.0);
     let mut next_tick = 0.0;
     let mut last_state = String::new();
     let mut dropped = 0;
@@ -851,14 +897,17 @@ pub fn run_node(
                 sim_time = Some(c.clock);
             }
         }
+        let mut pose_arrived = false;
         if let Some(s) = &odom_sub {
             for m in drain(s, &mut dropped) {
                 node.on_odom(&m, now);
+                pose_arrived = true;
             }
         }
         if let Some(s) = &pose_sub {
             for m in drain(s, &mut dropped) {
                 node.on_pose(&m, now);
+                pose_arrived = true;
             }
         }
         for m in drain(&goal_sub, &mut dropped) {
@@ -868,6 +917,11 @@ pub fn run_node(
             node.on_plan(&m);
         }
         let scans = drain(&scan_sub, &mut dropped);
+        for line in
+            [scan_watch.check(!scans.is_empty(), now), pose_watch.check(pose_arrived, now)].into_iter().flatten()
+        {
+            eprintln!("[{}] {line}", p.node());
+        }
         pending_scan |= !scans.is_empty();
         for m in &scans {
             node.on_scan(m, now);

@@ -483,3 +483,17 @@ fn a_plan_leads_the_policy_out_of_a_dead_end() {
     assert!(with_plan >= 7, "with the plan {with_plan} of 10 reached the goal");
     assert!(goal_only <= 2, "steering at the goal alone {goal_only} of 10 got out");
 }
+
+#[test]
+fn a_silent_input_topic_is_reported_once_and_its_return_too() {
+    use rlnav_ros2::node::SilenceWatch;
+    let mut w = SilenceWatch::new("/scan", 3.0, 0.0);
+    assert_eq!(w.check(false, 1.0), None);
+    let line = w.check(false, 3.1).unwrap();
+    assert!(line.contains("nothing on /scan for 3 s") && line.contains("ros2 topic info -v /scan"), "{line}");
+    assert_eq!(w.check(false, 10.0), None, "once per silence");
+    assert_eq!(w.check(true, 10.1).as_deref(), Some("/scan: messages arriving"));
+    assert_eq!(w.check(true, 10.2), None);
+    assert_eq!(w.check(false, 12.0), None);
+    assert!(w.check(false, 13.3).is_some(), "a new silence is reported again");
+}

@@ -84,10 +84,12 @@ pub enum Command {
 
 /// RustDDS and ros2-client report what goes wrong on the wire (a QoS mismatch, a topic whose
 /// type differs, discovery trouble) through `log`; without a logger the user sees nothing. Two
-/// RustDDS modules warn several times a second about normal loopback discovery: errors only.
+/// RustDDS modules are quietened: its writer warns several times a second about normal
+/// loopback discovery (errors only), its UDP listener reports leaving multicast groups that
+/// loopback never joined at every exit (off).
 fn init_logger(level: Option<String>) {
     let default = level.unwrap_or_else(|| "warn".into());
-    let filter = format!("{default},rustdds::rtps::writer=error,rustdds::network::udp_listener=error");
+    let filter = format!("{default},rustdds::rtps::writer=error,rustdds::network::udp_listener=off");
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(filter)).init();
 }
 
