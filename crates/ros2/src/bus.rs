@@ -27,14 +27,18 @@ fn create(what: impl Into<String>) -> impl FnOnce(String) -> BusError {
     move |message| BusError::Create { what, message }
 }
 
-/// The QoS profiles ROS 2 uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// The QoS profiles ROS 2 uses; in parameter files `sensor_data`, `reliable` (or `default`)
+/// and `transient_local` (or `latched`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Qos {
     /// `rmw_qos_profile_sensor_data`: best effort, keep last 5, volatile (`/scan`).
     SensorData,
     /// `rmw_qos_profile_default`: reliable, keep last 10, volatile (commands, odometry).
+    #[serde(rename = "reliable", alias = "default")]
     Default,
     /// Reliable, keep last 1, transient local (`/tf_static`, latched topics).
+    #[serde(rename = "transient_local", alias = "latched")]
     Latched,
 }
 

@@ -65,6 +65,15 @@ pub struct NodeParams {
     pub lidar_yaw_offset: f32,
     /// Compute a command as each scan arrives (`scan`) or every control period (`timer`).
     pub trigger: Trigger,
+    /// QoS of the scan reader: `sensor_data` (best effort, the default: it matches reliable
+    /// and best-effort drivers), `reliable` or `transient_local`.
+    pub scan_qos: Qos,
+    /// QoS of the odometry (or pose) reader; default `sensor_data`, which matches a TurtleBot 4's
+    /// best-effort `/odom` as well as reliable ones.
+    pub odom_qos: Qos,
+    /// QoS of the command writer; default `reliable` (a best-effort reader, such as a
+    /// `sensor_data` subscriber, matches it too).
+    pub cmd_vel_qos: Qos,
     /// Stamp stamped commands with the simulator's time from `/clock` (ROS's `use_sim_time`).
     /// Timeouts are judged on the node's own clock by arrival either way.
     pub use_sim_time: bool,
@@ -109,6 +118,9 @@ impl Default for NodeParams {
             pose_timeout: 0.5,
             lidar_yaw_offset: 0.0,
             trigger: Trigger::Timer,
+            scan_qos: Qos::SensorData,
+            odom_qos: Qos::SensorData,
+            cmd_vel_qos: Qos::Default,
             use_sim_time: false,
             namespace: String::new(),
             node_name: String::new(),
@@ -830,28 +842,22 @@ pub fn run_node(
     if !p.pose_topic.is_empty() {
         p.pose_topic = crate::ros_args::resolve(&node.params.namespace, node.params.node(), &p.pose_topic);
     }
-    let scan_sub = bus.subscription::<LaserScan>(&p.scan_topic, Qos::SensorData)?;
+    let scan_sub = bus.subscription::<LaserScan>(&p.scan_topic, p.scan_qos)?;
     // Odometry and poses are read best effort, which matches reliable and best-effort writers
     // alike (a TurtleBot 4 publishes /odom best effort; a reliable reader would never match it).
-    let odom_sub = if p.pose_topic.is_empty() {
-        Some(bus.subscription::<Odometry>(&p.odom_topic, Qos::SensorData)?)
-    } else {
-        None
-    };
-    let pose_sub = if p.pose_topic.is_empty() {
-        None
-    } else {
-        Some(bus.subscription::<PoseStamped>(&p.pose_topic, Qos::SensorData)?)
-    };
+    let odom_sub =
+        if p.pose_topic.is_empty() { Some(bus.subscription::<Odometry>(&p.odom_topic, p.odom_qos)?) } else { None };
+    let pose_sub =
+        if p.pose_topic.is_empty() { None } else { Some(bus.subscription::<PoseStamped>(&p.pose_topic, p.odom_qos)?) };
     let clock_sub = if p.use_sim_time { Some(bus.subscription::<msg::Clock>("/clock", Qos::Default)?) } else { None };
     let mut sim_time: Option<Time> = None;
     let goal_sub = bus.subscription::<PoseStamped>(&p.goal_topic, Qos::Default)?;
     let plan_sub = bus.subscription::<PlanMsg>(&p.plan_topic, Qos::Default)?;
     let tf_sub = bus.subscription::<TFMessage>(&p.tf_topic, Qos::Default)?;
     let twist_pub =
-        if p.cmd_vel_stamped { None } else { Some(bus.publisher::<msg::Twist>(&p.cmd_vel_topic, Qos::Default)?) };
+        if p.cmd_vel_stamped { None } else { Some(bus.publisher::<msg::Twist>(&p.cmd_vel_topic, p.cmd_vel_qos)?) };
     let stamped_pub =
-        if p.cmd_vel_stamped { Some(bus.publisher::<TwistStamped>(&p.cmd_vel_topic, Qos::Default)?) } else { None };
+        if p.cmd_vel_stamped { Some(bus.publisher::<TwistStamped>(&p.cmd_vel_topic, p.cmd_vel_qos)?) } else { None };
     let status_pub = bus.publisher::<StringMsg>(&p.status_topic, Qos::Default)?;
     // Wake on arriving data rather than polling on a timer: the scan-to-command latency is
     // then DDS's, not a sleep's.

@@ -107,6 +107,14 @@ fn speed_caps_and_goal_tolerance_come_from_the_parameters() {
                   rlnav_policy:\n  ros__parameters:\n    max_linear: 0.2\n    plan_topic: /plan\n";
     let p = NodeParams::from_yaml("nav2_params.yaml", shared).unwrap();
     assert!(p.use_sim_time);
+    // QoS per topic, by ROS's profile names.
+    use rlnav_ros2::bus::Qos;
+    assert_eq!((p.scan_qos, p.odom_qos, p.cmd_vel_qos), (Qos::SensorData, Qos::SensorData, Qos::Default));
+    let q =
+        NodeParams::from_yaml("q.yaml", "odom_qos: reliable\ncmd_vel_qos: sensor_data\nscan_qos: default\n").unwrap();
+    assert_eq!((q.scan_qos, q.odom_qos, q.cmd_vel_qos), (Qos::Default, Qos::Default, Qos::SensorData));
+    let e = NodeParams::from_yaml("q.yaml", "odom_qos: fast\n").unwrap_err().to_string();
+    assert!(e.contains("q.yaml") && e.contains("odom_qos") && e.contains("sensor_data"), "{e}");
     assert_eq!(p.max_linear, Some(0.2));
     let others = "controller_server:\n  ros__parameters:\n    a: 1\nplanner_server:\n  ros__parameters:\n    b: 2\n";
     let e = NodeParams::from_yaml("nav2_params.yaml", others).unwrap_err().to_string();
