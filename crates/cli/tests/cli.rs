@@ -177,22 +177,7 @@ fn policies_inspect_and_evaluate_with_clear_errors() {
     let out = rlnav(&["inspect", &model]);
     assert!(String::from_utf8_lossy(&out.stdout).contains("no contract in metadata_props"));
     let dir = std::env::temp_dir().join(format!("rlnav-cli-eval-{}", std::process::id()));
-    let out = rlnav(&[
-        "eval",
-        "--policy",
-        &model,
-        "--contract",
-        &contract,
-        "--scenario",
-        "empty-room",
-        "--episodes",
-        "4",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let ev: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
-    assert_eq!(ev["episodes"].as_array().unwrap().len(), 4);
+    let ev = eval_in_empty_room(&model, &contract, 4, &dir);
     for key in ["success_rate", "collision_rate", "timeout_rate", "mean_task_time", "mean_min_range", "mean_speed"] {
         assert!(ev["summary"].get(key).is_some(), "{key}");
     }
@@ -223,22 +208,7 @@ fn a_133_input_model_runs_through_its_side_contract() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success() && text.contains("input  obs [batch, 133]"), "{text}");
     assert!(text.contains("120-124  goal_bearing × 5, oldest first") && text.contains("131  lateral"), "{text}");
-    let out = rlnav(&[
-        "eval",
-        "--policy",
-        model,
-        "--contract",
-        contract,
-        "--scenario",
-        "empty-room",
-        "--episodes",
-        "6",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let ev: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
-    assert_eq!(ev["episodes"].as_array().unwrap().len(), 6);
+    let ev = eval_in_empty_room(model, contract, 6, &dir);
     // Steering by the goal bearing reaches goals in an empty room; misplaced values would not.
     assert!(ev["summary"]["success_rate"].as_f64().unwrap() >= 0.5, "{}", ev["summary"]);
     // Without the side contract: refused, pointing at --contract.
@@ -403,4 +373,16 @@ fn help_lists_every_shipped_config_and_suite() {
         assert!(text.contains(name), "{name} missing in\n{text}");
     }
     assert!(text.contains("barn"));
+}
+
+/// `rlnav eval --policy MODEL --contract CONTRACT` on the empty room: the eval.json it wrote,
+/// checked to hold `episodes` episodes.
+fn eval_in_empty_room(model: &str, contract: &str, episodes: usize, dir: &std::path::Path) -> serde_json::Value {
+    let n = episodes.to_string();
+    let args = ["eval", "--policy", model, "--contract", contract, "--scenario", "empty-room", "--episodes", &n];
+    let out = rlnav(&[&args[..], &["--out", dir.to_str().unwrap()]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let ev: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(ev["episodes"].as_array().unwrap().len(), episodes);
+    ev
 }

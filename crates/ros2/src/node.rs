@@ -205,9 +205,8 @@ impl NodeParams {
         crate::ros_args::resolve(&self.namespace, self.node(), name)
     }
 
-    /// The topic parameters whose resolved name is `resolved`.
-    fn topics_mut_by_resolved(&mut self, resolved: &str) -> Vec<&mut String> {
-        let (ns, node) = (self.namespace.clone(), self.node().to_string());
+    /// Every topic parameter (`pose_topic` empty when unused).
+    fn topics_mut(&mut self) -> [&mut String; 8] {
         [
             &mut self.scan_topic,
             &mut self.odom_topic,
@@ -218,9 +217,23 @@ impl NodeParams {
             &mut self.cmd_vel_topic,
             &mut self.status_topic,
         ]
-        .into_iter()
-        .filter(|t| !t.is_empty() && crate::ros_args::resolve(&ns, &node, t) == resolved)
-        .collect()
+    }
+
+    /// The topic parameters whose resolved name is `resolved`.
+    fn topics_mut_by_resolved(&mut self, resolved: &str) -> Vec<&mut String> {
+        let (ns, node) = (self.namespace.clone(), self.node().to_string());
+        self.topics_mut()
+            .into_iter()
+            .filter(|t| !t.is_empty() && crate::ros_args::resolve(&ns, &node, t) == resolved)
+            .collect()
+    }
+
+    /// Replaces every topic parameter by its absolute name in the node's namespace.
+    pub fn resolve_topics(&mut self) {
+        let (ns, node) = (self.namespace.clone(), self.node().to_string());
+        for t in self.topics_mut().into_iter().filter(|t| !t.is_empty()) {
+            *t = crate::ros_args::resolve(&ns, &node, t);
+        }
     }
 }
 
@@ -691,11 +704,11 @@ impl PolicyNode {
     /// or with a plan its last point and the point `lookahead` ahead along it.
     fn targets(&mut self, pose: Pose2) -> Result<Option<(Vec2, Vec2)>, String> {
         let Some(plan) = &self.plan else { return Ok(self.goal.map(|g| (g, g))) };
-        let pose_frame = self.pose_frame.clone().unwrap_or_default();
+        let pose_frame = self.pose_frame.as_deref().unwrap_or_default();
         let t = if plan.frame.is_empty() || plan.frame == pose_frame {
             Pose2::default()
         } else {
-            self.lookup(&pose_frame, &plan.frame)
+            self.lookup(pose_frame, &plan.frame)
                 .ok_or_else(|| format!("plan in frame `{}`, which has no transform to `{pose_frame}`", plan.frame))?
         };
         let lookahead = self.lookahead;
@@ -828,20 +841,7 @@ pub fn run_node(
     let mut p = node.params.clone();
     let mut bus = Bus::in_namespace(&p.namespace, p.node(), domain, reach)?;
     // Every topic by its absolute name in the node's namespace.
-    for t in [
-        &mut p.scan_topic,
-        &mut p.odom_topic,
-        &mut p.goal_topic,
-        &mut p.plan_topic,
-        &mut p.tf_topic,
-        &mut p.cmd_vel_topic,
-        &mut p.status_topic,
-    ] {
-        *t = crate::ros_args::resolve(&node.params.namespace, node.params.node(), t);
-    }
-    if !p.pose_topic.is_empty() {
-        p.pose_topic = crate::ros_args::resolve(&node.params.namespace, node.params.node(), &p.pose_topic);
-    }
+    p.resolve_topics();
     let scan_sub = bus.subscription::<LaserScan>(&p.scan_topic, p.scan_qos)?;
     // Odometry and poses are read best effort, which matches reliable and best-effort writers
     // alike (a TurtleBot 4 publishes /odom best effort; a reliable reader would never match it).
