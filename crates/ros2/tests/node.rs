@@ -483,9 +483,11 @@ fn a_plan_leads_the_policy_out_of_a_dead_end() {
         }
         Err("out of steps".into())
     };
-    // Ten starts in the cup, random headings. Measured (2026-12-02): 9 of 10 with the plan (one
-    // collision while turning round in the cup), 0 of 10 steering at the goal; the thresholds
-    // leave room for other CPUs' rounding, which changes trajectories.
+    // Ten starts in the cup, random headings. Measured (2026-12-02) over seeds 0-49 in blocks of
+    // ten: 9, 9, 9, 9 and 10 of 10 with the plan (46/50; the misses collide turning round in
+    // the cup), 0 of 10 steering at the goal in every block. At 92% a block of ten falls to 6 or
+    // fewer with probability 0.6%, so the thresholds leave room for other CPUs' rounding,
+    // which changes trajectories.
     let with_plan = (0..10).filter(|s| drive(true, *s).is_ok()).count();
     let goal_only = (0..10).filter(|s| drive(false, *s).is_ok()).count();
     assert!(with_plan >= 7, "with the plan {with_plan} of 10 reached the goal");
