@@ -91,10 +91,15 @@ impl Costmap {
             config,
         };
         if let Some(w) = world {
+            // A cell is lethal when an obstacle may reach into it: within half the cell's
+            // diagonal of its centre. (Half its side missed zero-thickness walls lying on a
+            // cell boundary, whose centres are exactly half a cell away: a door jamb vanished
+            // from the static layer and DWA cut through it.)
+            let reach = 0.5 * r * std::f32::consts::SQRT_2;
             for iy in 0..height {
                 for ix in 0..width {
                     let c = m.center(ix, iy);
-                    m.static_lethal[iy * width + ix] = !w.is_clear(c, 0.5 * r);
+                    m.static_lethal[iy * width + ix] = !w.is_clear(c, reach);
                 }
             }
         }

@@ -39,6 +39,28 @@ fn costmap_marks_inflates_and_clears() {
 }
 
 #[test]
+fn a_thin_wall_on_cell_boundaries_is_lethal_all_along() {
+    // x = 0 and y = 0.3 are cell boundaries of a 5 cm grid from -2: centres are exactly half a
+    // cell from these walls, and every cell they touch must be lethal (a missed door jamb is
+    // a collision).
+    let w = World::new(vec![
+        Obstacle::new(ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 1.0] }).unwrap(),
+        Obstacle::new(ObstacleSpec::Wall { from: [-1.5, 0.3], to: [-0.5, 0.3] }).unwrap(),
+    ]);
+    let m = Costmap::new(room(), CostmapConfig::default(), 0.2, Some(&w));
+    for k in 0..58 {
+        let y = -1.95 + 0.05 * k as f32;
+        assert_eq!(m.cost_at(Vec2::new(-0.01, y)), LETHAL, "left of the wall at y = {y}");
+        assert_eq!(m.cost_at(Vec2::new(0.01, y)), LETHAL, "right of the wall at y = {y}");
+    }
+    for k in 0..20 {
+        let x = -1.48 + 0.05 * k as f32;
+        assert_eq!(m.cost_at(Vec2::new(x, 0.29)), LETHAL, "below the wall at x = {x}");
+        assert_eq!(m.cost_at(Vec2::new(x, 0.31)), LETHAL, "above the wall at x = {x}");
+    }
+}
+
+#[test]
 fn astar_goes_around_a_wall() {
     let w = World::new(vec![Obstacle::new(ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 1.0] }).unwrap()]);
     let m = Costmap::new(room(), CostmapConfig::default(), 0.2, Some(&w));
