@@ -94,11 +94,20 @@ pub struct PeopleGenSpec {
     pub radius: [f32; 2],
     /// Length of the crossing walk (m, default [2, 5]).
     pub travel: [f32; 2],
+    /// How each person walks relative to the robot's straight start–goal line, drawn uniformly
+    /// per person (default `[cross]`).
+    pub patterns: Vec<crate::scenario::MotionPattern>,
 }
 
 impl Default for PeopleGenSpec {
     fn default() -> Self {
-        Self { count: [1, 3], speed: [0.5, 1.2], radius: [0.2, 0.3], travel: [2.0, 5.0] }
+        Self {
+            count: [1, 3],
+            speed: [0.5, 1.2],
+            radius: [0.2, 0.3],
+            travel: [2.0, 5.0],
+            patterns: vec![crate::scenario::MotionPattern::Cross],
+        }
     }
 }
 
@@ -110,7 +119,11 @@ impl PeopleGenSpec {
         }
         check_interval("speed", self.speed, 0.0, 5.0)?;
         check_interval("radius", self.radius, 0.05, 2.0)?;
-        check_interval("travel", self.travel, 0.0, 1000.0)
+        check_interval("travel", self.travel, 0.0, 1000.0)?;
+        if self.patterns.is_empty() {
+            return Err(Invalid::new("patterns", "at least one of cross, head_on, same_way, group"));
+        }
+        Ok(())
     }
 }
 

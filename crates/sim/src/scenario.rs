@@ -23,6 +23,8 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("random-static", include_str!("../../../scenarios/random-static.yaml")),
     ("dynamic-room", include_str!("../../../scenarios/dynamic-room.yaml")),
     ("random-dynamic", include_str!("../../../scenarios/random-dynamic.yaml")),
+    ("random-rooms", include_str!("../../../scenarios/random-rooms.yaml")),
+    ("random-rooms-dynamic", include_str!("../../../scenarios/random-rooms-dynamic.yaml")),
     ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
     ("warehouse", include_str!("../../../scenarios/warehouse.yaml")),
     ("turtlebot3-world", include_str!("../../../scenarios/turtlebot3-world.yaml")),
@@ -35,6 +37,20 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("paper-dynamic-box02", include_str!("../../../scenarios/paper-dynamic-box02.yaml")),
     ("paper-dynamic-box03", include_str!("../../../scenarios/paper-dynamic-box03.yaml")),
     ("paper-dynamic-people", include_str!("../../../scenarios/paper-dynamic-people.yaml")),
+    ("heldout-static-doorway", include_str!("../../../scenarios/heldout-static-doorway.yaml")),
+    ("heldout-static-corridor", include_str!("../../../scenarios/heldout-static-corridor.yaml")),
+    ("heldout-static-u-trap", include_str!("../../../scenarios/heldout-static-u-trap.yaml")),
+    ("heldout-static-office", include_str!("../../../scenarios/heldout-static-office.yaml")),
+    ("heldout-static-pole", include_str!("../../../scenarios/heldout-static-pole.yaml")),
+    ("heldout-static-legs", include_str!("../../../scenarios/heldout-static-legs.yaml")),
+    ("heldout-static-zigzag", include_str!("../../../scenarios/heldout-static-zigzag.yaml")),
+    ("heldout-static-narrow", include_str!("../../../scenarios/heldout-static-narrow.yaml")),
+    ("heldout-dynamic-fast-crossing", include_str!("../../../scenarios/heldout-dynamic-fast-crossing.yaml")),
+    ("heldout-dynamic-head-on", include_str!("../../../scenarios/heldout-dynamic-head-on.yaml")),
+    ("heldout-dynamic-overtake", include_str!("../../../scenarios/heldout-dynamic-overtake.yaml")),
+    ("heldout-dynamic-group", include_str!("../../../scenarios/heldout-dynamic-group.yaml")),
+    ("heldout-dynamic-doorway", include_str!("../../../scenarios/heldout-dynamic-doorway.yaml")),
+    ("heldout-dynamic-office", include_str!("../../../scenarios/heldout-dynamic-office.yaml")),
 ];
 
 /// A walled rectangular arena.
@@ -138,6 +154,72 @@ pub struct GeneratorSpec {
     /// People drawn for every episode, each walking back and forth across the start–goal
     /// line. None by default.
     pub people: Option<PeopleGenSpec>,
+    /// Share of the `count` obstacles centred near the straight start–goal line (within
+    /// 0.5 m of it) rather than anywhere (default 0). Any of `on_line`, `goal_behind`,
+    /// `partitions` and `concave` makes the generator draw start and goal first.
+    pub on_line: f32,
+    /// Probability of one small obstacle (0.05–0.25 m) standing on the line just in front of
+    /// the goal, so that the goal lies behind it (default 0).
+    pub goal_behind: f32,
+    /// Partition walls with doorways (none by default).
+    pub partitions: Option<PartitionGenSpec>,
+    /// L corners and U-shaped dead ends (none by default).
+    pub concave: Option<ConcaveGenSpec>,
+}
+
+/// How a generated mover or person moves relative to the robot's straight start–goal line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionPattern {
+    /// Back and forth across the line.
+    Cross,
+    /// Along the line from the goal's end towards the start (and back): it comes at the robot.
+    HeadOn,
+    /// Along the line from the start's end towards the goal: the robot overtakes it, or it
+    /// overtakes the robot.
+    SameWay,
+    /// Two or three walking abreast, head-on (people only; a mover takes it as head-on).
+    Group,
+}
+
+/// Partition walls across the arena, each with one doorway; with a start–goal line they are
+/// put across it, so that the way to the goal leads through a door.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PartitionGenSpec {
+    /// Number `[min, max]` (default [1, 1]).
+    pub count: [u32; 2],
+    /// Door width range (m, default [0.6, 1.2]).
+    pub door: [f32; 2],
+    /// Probability that a partition is drawn at all (default 1), so that a scenario can mix
+    /// open rooms with divided ones.
+    pub probability: f32,
+}
+
+impl Default for PartitionGenSpec {
+    fn default() -> Self {
+        Self { count: [1, 1], door: [0.6, 1.2], probability: 1.0 }
+    }
+}
+
+/// Concave obstacles built from thin boxes: L corners and U-shaped dead ends. With a
+/// start–goal line, U shapes are put on it opening towards the start (a trap for a policy that
+/// drives straight at the goal).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ConcaveGenSpec {
+    /// Number `[min, max]` (default [0, 1]).
+    pub count: [u32; 2],
+    /// Arm length range (m, default [0.8, 1.6]).
+    pub size: [f32; 2],
+    /// Wall thickness range (m, default [0.05, 0.2]).
+    pub thickness: [f32; 2],
+}
+
+impl Default for ConcaveGenSpec {
+    fn default() -> Self {
+        Self { count: [0, 1], size: [0.8, 1.6], thickness: [0.05, 0.2] }
+    }
 }
 
 /// Moving obstacles the generator draws for every episode.
@@ -152,11 +234,20 @@ pub struct MoverGenSpec {
     pub size: [f32; 2],
     /// Length of the back-and-forth path (m, default [2, 4]), centred on the start–goal line.
     pub travel: [f32; 2],
+    /// How each mover moves relative to the start–goal line, drawn uniformly per mover
+    /// (default `[cross]`, the article's task).
+    pub patterns: Vec<MotionPattern>,
 }
 
 impl Default for MoverGenSpec {
     fn default() -> Self {
-        Self { count: [1, 2], speed: [0.1, 0.3], size: [0.3, 0.5], travel: [2.0, 4.0] }
+        Self {
+            count: [1, 2],
+            speed: [0.1, 0.3],
+            size: [0.3, 0.5],
+            travel: [2.0, 4.0],
+            patterns: vec![MotionPattern::Cross],
+        }
     }
 }
 
@@ -169,7 +260,18 @@ impl Default for GeneratorSpec {
             min_clearance: 0.8,
             movers: None,
             people: None,
+            on_line: 0.0,
+            goal_behind: 0.0,
+            partitions: None,
+            concave: None,
         }
+    }
+}
+
+impl GeneratorSpec {
+    /// Whether it builds around the start–goal line (and so draws start and goal first).
+    fn builds_around_line(&self) -> bool {
+        self.on_line > 0.0 || self.goal_behind > 0.0 || self.partitions.is_some() || self.concave.is_some()
     }
 }
 
@@ -280,6 +382,22 @@ impl Validate for ScenarioSpec {
                 return Err(Invalid::new("procedural.shapes", "at least one of circle, box, polygon"));
             }
             check_range("procedural.min_clearance", g.min_clearance, 0.0, 100.0)?;
+            check_range("procedural.on_line", g.on_line, 0.0, 1.0)?;
+            check_range("procedural.goal_behind", g.goal_behind, 0.0, 1.0)?;
+            if let Some(p) = &g.partitions {
+                if p.count[0] > p.count[1] || p.count[1] > 4 {
+                    return Err(Invalid::new("procedural.partitions.count", "[min, max] with min <= max <= 4"));
+                }
+                check_interval("procedural.partitions.door", p.door, 0.1, 100.0)?;
+                check_range("procedural.partitions.probability", p.probability, 0.0, 1.0)?;
+            }
+            if let Some(c) = &g.concave {
+                if c.count[0] > c.count[1] || c.count[1] > 20 {
+                    return Err(Invalid::new("procedural.concave.count", "[min, max] with min <= max <= 20"));
+                }
+                check_interval("procedural.concave.size", c.size, 0.1, 100.0)?;
+                check_interval("procedural.concave.thickness", c.thickness, 0.01, 10.0)?;
+            }
         }
         for (key, p) in [("start", &self.start), ("goal", &self.goal)] {
             match p {
@@ -321,6 +439,12 @@ impl Validate for ScenarioSpec {
             check_interval("procedural.movers.speed", m.speed, 0.0, 20.0)?;
             check_interval("procedural.movers.size", m.size, 0.01, 10.0)?;
             check_interval("procedural.movers.travel", m.travel, 0.0, 1000.0)?;
+            if m.patterns.is_empty() {
+                return Err(Invalid::new(
+                    "procedural.movers.patterns",
+                    "at least one of cross, head_on, same_way, group",
+                ));
+            }
         }
         Ok(())
     }
@@ -368,6 +492,8 @@ pub struct EpisodeSetup {
     pub people: Vec<Person>,
     /// Goal velocity (m/s); zero for a fixed goal.
     pub goal_velocity: Vec2,
+    /// Where the robot can drive in this world (for the shortest path that SPL needs).
+    pub reach: Arc<ReachabilityGrid>,
 }
 
 /// Why no episode could be drawn.
@@ -567,20 +693,37 @@ impl Scenario {
     pub fn sample<R: rand::Rng>(&self, rng: &mut R) -> Result<EpisodeSetup, NoEpisode> {
         let mut reason = String::new();
         for _ in 0..WORLD_TRIES {
+            // A generator that builds around the start–goal line draws start and goal first.
+            let anchors = match self.spec.procedural.as_ref().filter(|g| g.builds_around_line()) {
+                Some(_) => match self.draw_anchors(rng) {
+                    Some(a) => Some(a),
+                    None => {
+                        reason = "no start and goal in free space the requested distance apart".into();
+                        continue;
+                    }
+                },
+                None => None,
+            };
             let (world, grid) = match &self.fixed_world {
                 Some((w, g)) => (w.clone(), g.clone()),
                 None => {
-                    let w = self.generate(rng);
+                    let w = self.generate_around(rng, anchors.map(|(s, g)| (s.position(), g)));
                     let g = ReachabilityGrid::new(&w, self.area, self.clearance, GRID_RESOLUTION);
                     (Arc::new(w), Arc::new(g))
                 }
             };
-            let placed = match &self.cells {
-                Some(cells) => {
+            let placed = match (&self.cells, anchors) {
+                (_, Some((start, goal))) => {
+                    let ok = world.is_clear(start.position(), self.start_clearance)
+                        && world.is_clear(goal, self.clearance)
+                        && (!self.spec.require_path || grid.connected(start.position(), goal));
+                    if ok { Ok((start, goal)) } else { Err("generated obstacles cut the start from the goal".into()) }
+                }
+                (Some(cells), None) => {
                     let (start, goal) = cells.sample(rng);
                     Ok((Pose2::new(start.x, start.y, rng.random_range(-PI..PI)), goal))
                 }
-                None => self.place(&world, &grid, rng),
+                (None, None) => self.place(&world, &grid, rng),
             };
             match placed {
                 Ok((start, goal)) => {
@@ -598,7 +741,7 @@ impl Scenario {
                         }
                         None => Vec2::ZERO,
                     };
-                    return Ok(EpisodeSetup { world, start, goal, movers, people, goal_velocity });
+                    return Ok(EpisodeSetup { world, start, goal, movers, people, goal_velocity, reach: grid });
                 }
                 Err(r) => reason = r,
             }
@@ -615,27 +758,55 @@ impl Scenario {
         let Some(g) = self.spec.procedural.as_ref().and_then(|p| p.people.as_ref()) else { return people };
         let line = goal - start;
         let normal = Vec2::new(-line.y, line.x).normalize_or_zero();
+        let inside = |p: Vec2| self.area.contains(p);
         for _ in 0..rng.random_range(g.count[0]..=g.count[1]) {
             let radius = rng.random_range(g.radius[0]..=g.radius[1]);
-            // A few tries for a crossing whose ends are in free space.
+            let pattern = g.patterns[rng.random_range(0..g.patterns.len())];
+            // A few tries for a walk whose ends are in free space.
             for _ in 0..20 {
-                let centre = start + line * rng.random_range(0.25..=0.75f32);
-                let half = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
-                let tilt = rng.random_range(-0.5..=0.5f32);
-                let dir = (normal + line.normalize_or_zero() * tilt).normalize_or_zero();
-                let (a, b) = (centre - dir * half, centre + dir * half);
-                let inside = |p: Vec2| self.area.contains(p);
-                if !(inside(a) && inside(b) && world.is_clear(a, radius + 0.05) && world.is_clear(b, radius + 0.05)) {
+                let (a, b, abreast) = match pattern {
+                    MotionPattern::Cross => {
+                        let centre = start + line * rng.random_range(0.25..=0.75f32);
+                        let half = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
+                        let tilt = rng.random_range(-0.5..=0.5f32);
+                        let dir = (normal + line.normalize_or_zero() * tilt).normalize_or_zero();
+                        (centre - dir * half, centre + dir * half, 1)
+                    }
+                    MotionPattern::HeadOn | MotionPattern::SameWay | MotionPattern::Group => {
+                        // From beyond the goal's end to the start's (or the other way).
+                        let off = normal * rng.random_range(-0.4..=0.4f32);
+                        let m = radius + 0.1;
+                        let (lo, hi) = (self.area.min + Vec2::splat(m), self.area.max - Vec2::splat(m));
+                        let (near, far) =
+                            ((start + line * 0.1 + off).clamp(lo, hi), (start + line * 1.1 + off).clamp(lo, hi));
+                        let n = if pattern == MotionPattern::Group { rng.random_range(2..=3) } else { 1 };
+                        if pattern == MotionPattern::SameWay { (near, far, n) } else { (far, near, n) }
+                    }
+                };
+                // Side by side, 2.5 radii apart (a group walks abreast).
+                let ends: Vec<(Vec2, Vec2)> = (0..abreast)
+                    .map(|k| {
+                        let shift = normal * ((k as f32 - 0.5 * (abreast - 1) as f32) * 2.5 * radius);
+                        (a + shift, b + shift)
+                    })
+                    .collect();
+                let free = |p: Vec2| inside(p) && world.is_clear(p, radius + 0.05);
+                if !ends.iter().all(|(p, q)| free(*p) && free(*q)) {
                     continue;
                 }
-                let spec = PersonSpec {
-                    radius,
-                    goals: vec![a.into(), b.into()],
-                    speed: g.speed,
-                    order: crate::people::GoalOrder::Sequence,
-                    random_start: true,
-                };
-                people.push(spec.instantiate(rng));
+                // A group keeps formation: the same speed and phase for all.
+                let speed = rng.random_range(g.speed[0]..=g.speed[1]);
+                let random_start = abreast == 1;
+                for (p, q) in ends {
+                    let spec = PersonSpec {
+                        radius,
+                        goals: vec![p.into(), q.into()],
+                        speed: if abreast == 1 { g.speed } else { [speed, speed] },
+                        order: crate::people::GoalOrder::Sequence,
+                        random_start,
+                    };
+                    people.push(spec.instantiate(rng));
+                }
                 break;
             }
         }
@@ -649,13 +820,28 @@ impl Scenario {
             let line = goal - start;
             let normal = Vec2::new(-line.y, line.x).normalize_or_zero();
             for _ in 0..rng.random_range(g.count[0]..=g.count[1]) {
-                let centre = start + line * rng.random_range(0.3..=0.7f32);
-                let half = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
                 let clamp = |p: Vec2| {
                     let a = self.area;
                     Vec2::new(p.x.clamp(a.min.x + 0.3, a.max.x - 0.3), p.y.clamp(a.min.y + 0.3, a.max.y - 0.3))
                 };
-                let (a, b) = (clamp(centre - normal * half), clamp(centre + normal * half));
+                let pattern = g.patterns[rng.random_range(0..g.patterns.len())];
+                let (a, b) = match pattern {
+                    MotionPattern::Cross => {
+                        let centre = start + line * rng.random_range(0.3..=0.7f32);
+                        let half = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
+                        (clamp(centre - normal * half), clamp(centre + normal * half))
+                    }
+                    // Along the line, a little off it: from the goal's end or the start's.
+                    MotionPattern::HeadOn | MotionPattern::Group | MotionPattern::SameWay => {
+                        let off = normal * rng.random_range(-0.3..=0.3f32);
+                        let (near, far) = (start + line * 0.2 + off, start + line * 0.95 + off);
+                        if pattern == MotionPattern::SameWay {
+                            (clamp(near), clamp(far))
+                        } else {
+                            (clamp(far), clamp(near))
+                        }
+                    }
+                };
                 if (a - b).length() < 1e-3 {
                     continue;
                 }
@@ -729,23 +915,148 @@ impl Scenario {
         }
     }
 
+    /// Partitions with doors across the start–goal line and concave shapes on it.
+    fn structures<R: rand::Rng>(
+        &self,
+        g: &GeneratorSpec,
+        s: Vec2,
+        q: Vec2,
+        rng: &mut R,
+        obstacles: &mut Vec<Obstacle>,
+        placed: &mut Vec<(Vec2, f32)>,
+    ) {
+        let line = q - s;
+        let a = self.area;
+        let push = |spec: ObstacleSpec, obstacles: &mut Vec<Obstacle>| {
+            if let Ok(o) = Obstacle::new(spec) {
+                obstacles.push(o);
+            }
+        };
+        if let Some(p) = g.partitions.as_ref().filter(|p| rng.random_range(0.0..1.0f32) < p.probability) {
+            let n = rng.random_range(p.count[0]..=p.count[1]);
+            // Across the line's main axis, at distinct fractions of the way.
+            let vertical = line.x.abs() >= line.y.abs();
+            for k in 0..n {
+                let t = (k as f32 + rng.random_range(0.35..=0.65f32)) / n as f32;
+                let cut = s + line * t;
+                let (lo, hi) = if vertical { (a.min.y, a.max.y) } else { (a.min.x, a.max.x) };
+                let door = rng.random_range(p.door[0]..=p.door[1]);
+                let margin = 0.05;
+                if hi - lo < door + 2.0 * margin {
+                    continue;
+                }
+                let d0 = rng.random_range(lo + margin..=hi - margin - door);
+                let along = |v: f32| if vertical { [cut.x, v] } else { [v, cut.y] };
+                push(ObstacleSpec::Wall { from: along(lo), to: along(d0) }, obstacles);
+                push(ObstacleSpec::Wall { from: along(d0 + door), to: along(hi) }, obstacles);
+            }
+        }
+        if let Some(c) = &g.concave {
+            for _ in 0..rng.random_range(c.count[0]..=c.count[1]) {
+                let arm = rng.random_range(c.size[0]..=c.size[1]);
+                let th = rng.random_range(c.thickness[0]..=c.thickness[1]);
+                let u = rng.random_range(0.0..1.0f32) < 0.6;
+                // A U opens towards the start; an L sits anywhere near the line.
+                let centre = s + line * rng.random_range(0.35..=0.65f32);
+                let back = line.normalize_or_zero().rotate(Vec2::from_angle(rng.random_range(-0.4..=0.4f32)));
+                let side = Vec2::new(-back.y, back.x);
+                let (half_w, depth) = (0.5 * arm.max(0.8), 0.8 * arm);
+                let bound = half_w.hypot(depth) + th;
+                let keep = (centre - s).length() >= bound + self.start_clearance + 0.05
+                    && (centre - q).length() >= bound + self.clearance + 0.05;
+                if !keep {
+                    continue;
+                }
+                let yaw = back.y.atan2(back.x);
+                let bx = |c: Vec2, size: [f32; 2]| ObstacleSpec::Box { center: c.into(), size, yaw };
+                // The back wall across the line, behind the centre; arms towards the start.
+                push(bx(centre + back * (0.5 * depth), [th, 2.0 * half_w + th]), obstacles);
+                push(bx(centre + side * half_w, [depth, th]), obstacles);
+                if u {
+                    push(bx(centre - side * half_w, [depth, th]), obstacles);
+                }
+                placed.push((centre, bound));
+            }
+        }
+    }
+
+    /// Start and goal drawn before the world (for generators that build around the line
+    /// between them): in the placements, the requested distance apart, clear of the fixed
+    /// obstacles.
+    fn draw_anchors<R: rand::Rng>(&self, rng: &mut R) -> Option<(Pose2, Vec2)> {
+        let [dmin, dmax] = self.spec.start_goal_distance;
+        let clear =
+            |p: Vec2, r: f32| self.area.contains(p) && self.fixed.iter().all(|o| o.primitive.signed_distance(p) >= r);
+        for _ in 0..PLACEMENT_TRIES {
+            let start = self.draw(&self.spec.start, rng);
+            if !clear(start.position(), self.start_clearance) {
+                continue;
+            }
+            for _ in 0..PLACEMENT_TRIES / 4 {
+                let goal = self.draw(&self.spec.goal, rng).position();
+                let d = (goal - start.position()).length();
+                if d >= dmin && d <= dmax && clear(goal, self.clearance) {
+                    return Some((start, goal));
+                }
+            }
+        }
+        None
+    }
+
     /// Draws a world: the fixed obstacles plus generated ones.
     pub fn generate<R: rand::Rng>(&self, rng: &mut R) -> World {
+        self.generate_around(rng, None)
+    }
+
+    /// Draws a world around a start and goal (when given): partitions across the line between
+    /// them with a door, U-shaped dead ends on it opening towards the start, a share of the
+    /// obstacles near it and one just in front of the goal, all keeping the start's and the
+    /// goal's clearance; then the other obstacles anywhere.
+    pub fn generate_around<R: rand::Rng>(&self, rng: &mut R, anchors: Option<(Vec2, Vec2)>) -> World {
         let mut obstacles = self.fixed.clone();
         let Some(g) = &self.spec.procedural else {
             return self.build_world(obstacles);
         };
-        let count = rng.random_range(g.count[0]..=g.count[1]);
         let mut placed: Vec<(Vec2, f32)> = Vec::new();
-        for _ in 0..count {
+        // Keeps generated obstacles off the start and the goal.
+        let keep_out = |c: Vec2, r: f32| {
+            anchors.is_none_or(|(s, q)| {
+                (c - s).length() >= r + self.start_clearance + 0.05 && (c - q).length() >= r + self.clearance + 0.05
+            })
+        };
+        if let Some((s, q)) = anchors {
+            self.structures(g, s, q, rng, &mut obstacles, &mut placed);
+        }
+        let count = rng.random_range(g.count[0]..=g.count[1]);
+        for i in 0..count {
+            let near_line = anchors.filter(|_| rng.random_range(0.0..1.0f32) < g.on_line);
+            let behind_goal =
+                i == 0 && anchors.is_some() && g.goal_behind > 0.0 && rng.random_range(0.0..1.0f32) < g.goal_behind;
             for _attempt in 0..50 {
-                let size = rng.random_range(g.size[0]..=g.size[1]);
+                let mut size = rng.random_range(g.size[0]..=g.size[1]);
                 let inset = size + g.min_clearance;
                 let (lo, hi) = (self.area.min + Vec2::splat(inset), self.area.max - Vec2::splat(inset));
                 if lo.x >= hi.x || lo.y >= hi.y {
                     break;
                 }
-                let c = Vec2::new(rng.random_range(lo.x..hi.x), rng.random_range(lo.y..hi.y));
+                let c = match (behind_goal, near_line, anchors) {
+                    (true, _, Some((s, q))) => {
+                        // On the line (a little off it), just in front of the goal.
+                        size = rng.random_range(0.05..=0.25f32).min(g.size[1]);
+                        let dir = (q - s).normalize_or_zero().rotate(Vec2::from_angle(rng.random_range(-0.3..=0.3f32)));
+                        q - dir * (self.clearance + size + rng.random_range(0.1..=0.4f32))
+                    }
+                    (_, Some((s, q)), _) => {
+                        let line = q - s;
+                        let normal = Vec2::new(-line.y, line.x).normalize_or_zero();
+                        s + line * rng.random_range(0.2..=0.8f32) + normal * rng.random_range(-0.5..=0.5f32)
+                    }
+                    _ => Vec2::new(rng.random_range(lo.x..hi.x), rng.random_range(lo.y..hi.y)),
+                };
+                let inside = c.x >= lo.x && c.x <= hi.x && c.y >= lo.y && c.y <= hi.y;
+                if !(inside && keep_out(c, size)) {
+                    continue;
+                }
                 if placed.iter().any(|(pc, pr)| (*pc - c).length() < pr + size + g.min_clearance) {
                     continue;
                 }
@@ -853,6 +1164,66 @@ mod tests {
             a.obstacles().iter().map(|o| o.spec.clone()).collect::<Vec<_>>(),
             b.obstacles().iter().map(|o| o.spec.clone()).collect::<Vec<_>>()
         );
+    }
+
+    #[test]
+    fn rooms_generator_builds_doors_dead_ends_and_clutter_around_the_line() {
+        let spec = ScenarioSpec::load("random-rooms").unwrap();
+        let s = Scenario::new(spec, 0.2, 0.0).unwrap();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        let (mut divided, mut concave, mut near_line, mut blocked_line, n) = (0, 0, 0, 0, 200);
+        for _ in 0..n {
+            let e = s.sample(&mut rng).unwrap();
+            let (a, b) = (e.start.position(), e.goal);
+            // Always drivable from start to goal, with the clearance kept at both ends.
+            assert!(e.reach.connected(a, b));
+            assert!(e.world.clearance(a) >= s.start_clearance() && e.world.clearance(b) >= s.clearance());
+            let obs = &e.world.obstacles()[4..];
+            divided += obs.iter().any(|o| matches!(o.spec, ObstacleSpec::Wall { .. })) as usize;
+            concave += obs.iter().any(|o| matches!(&o.spec, ObstacleSpec::Box { size, .. } if size[0].min(size[1]) <= 0.2 && size[0].max(size[1]) >= 0.6)) as usize;
+            let line_distance = |p: Vec2| {
+                let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                (a + (b - a) * t - p).length()
+            };
+            near_line += obs.iter().any(|o| line_distance(o.bound_center) < 0.5) as usize;
+            // The straight line itself is blocked (it would need a detour).
+            let steps = ((b - a).length() / 0.02) as usize;
+            blocked_line +=
+                (0..=steps).any(|k| e.world.clearance(a + (b - a) * (k as f32 / steps as f32)) < 0.05) as usize;
+        }
+        // A partition with a door is drawn in half the scenes (a third survive the path check);
+        // U and L shapes, obstacles on the line and blocked straight lines are common.
+        // Measured over seeds 1-6: divided 63-83, concave 45-59, near the line 195-199,
+        // blocked 163-177 of 200.
+        assert!((40..=140).contains(&divided), "{divided}/{n} divided");
+        assert!(concave >= 30, "{concave}/{n} with a concave shape");
+        assert!(near_line >= n * 3 / 4, "{near_line}/{n} with an obstacle near the line");
+        assert!(blocked_line >= n / 3, "{blocked_line}/{n} with the straight line blocked");
+    }
+
+    #[test]
+    fn generated_traffic_follows_its_patterns() {
+        let yaml = "name: t\narena: {size: [8, 8]}\nprocedural:\n  count: [0, 0]\n  movers: {count: [1, 1], patterns: [head_on]}\n  \
+                    people: {count: [1, 1], patterns: [group]}\nstart_goal_distance: [4, 6]\n";
+        let spec: ScenarioSpec = crate::config::from_yaml_str("t.yaml", yaml).unwrap();
+        let s = Scenario::new(spec, 0.2, 0.0).unwrap();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(4);
+        let mut groups = 0;
+        for _ in 0..50 {
+            let e = s.sample(&mut rng).unwrap();
+            let line = (e.goal - e.start.position()).normalize();
+            // The mover travels along the line (not across it).
+            let m = &e.movers[0];
+            let (p0, p1) = (m.clone().at_time(0.0).pose.position(), m.clone().at_time(1.0).pose.position());
+            if (p1 - p0).length() > 1e-3 {
+                assert!((p1 - p0).normalize().dot(line).abs() > 0.9, "mover not along the line");
+            }
+            groups += (e.people.len() >= 2) as usize;
+        }
+        assert!(groups >= 40, "{groups}/50 scenes with a group of people");
+        let bad = "name: t\narena: {size: [8, 8]}\nprocedural: {movers: {patterns: []}}\n";
+        let err = crate::config::from_yaml_str::<ScenarioSpec>("t.yaml", bad).unwrap_err().to_string();
+        assert!(err.contains("t.yaml") && err.contains("procedural.movers.patterns"), "{err}");
     }
 
     #[test]

@@ -85,8 +85,21 @@ fn every_robot_runs_in_every_scenario() {
     use rlnav_sim::robot::ROBOT_PRESETS;
     use rlnav_sim::scenario::{SCENARIO_PRESETS, ScenarioSpec};
     use rlnav_sim::task::TaskConfig;
+    // The held-out indoor rooms are sized for the four indoor robots: the Jackal (0.43 m of
+    // clearance, BARN's robot) does not fit their 0.85-0.9 m doors and gaps, and says so.
+    let too_narrow_for_jackal = ["heldout-static-corridor", "heldout-static-doorway", "heldout-static-narrow"];
     for (robot, _) in ROBOT_PRESETS {
         for (scenario, _) in SCENARIO_PRESETS {
+            if *robot == "jackal" && too_narrow_for_jackal.contains(scenario) {
+                let e = EnvSetup::new(
+                    ScenarioSpec::load(scenario).unwrap(),
+                    RobotSpec::load(robot).unwrap(),
+                    TaskConfig::default(),
+                )
+                .unwrap_err();
+                assert!(e.to_string().contains("start/goal"), "{e}");
+                continue;
+            }
             let setup = EnvSetup::new(
                 ScenarioSpec::load(scenario).unwrap(),
                 RobotSpec::load(robot).unwrap(),
