@@ -48,14 +48,23 @@ fn rl_spec(name: &str) -> Option<(String, Option<String>)> {
 }
 
 /// Checks, before any episode, that the controller `name` can be made and, for a policy, that
-/// the robot's lidar can feed its scan contract.
-pub fn check(name: &str, setup: &EnvSetup) -> Result<(), ControllerError> {
+/// the robot's lidar can feed its scan contract. Returns warnings: a robot outside the
+/// envelope of the robots the policy was trained on.
+pub fn check(name: &str, setup: &EnvSetup) -> Result<Vec<String>, ControllerError> {
     if let Some((model, contract)) = rl_spec(name) {
         let runner = PolicyRunner::load(Path::new(&model), contract.as_deref().map(Path::new))?;
         runner.check_lidar(&setup.robot.lidar)?;
-        return Ok(());
+        let warnings = match &runner.contract().envelope {
+            Some(e) => e
+                .outside(&setup.robot)
+                .into_iter()
+                .map(|w| format!("{name} was trained on {}; {}'s {w}", e.robots.join(", "), setup.robot.name))
+                .collect(),
+            None => Vec::new(),
+        };
+        return Ok(warnings);
     }
-    for_setup(name, setup).map(|_| ())
+    for_setup(name, setup).map(|_| Vec::new())
 }
 
 /// A controller by name for episodes of `setup`: as [`by_name`], and `dwa` set up for the

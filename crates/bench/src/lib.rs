@@ -7,6 +7,7 @@
 //! - [`latency`]: per-cycle compute time of a controller, as percentiles;
 //! - [`suite`]: scenario suites, several controllers on the same seeded episodes, the table;
 //! - [`plots`]: distance to goal over time and trajectories coloured by lidar range (SVG);
+//! - [`report`]: `report.html`, the whole benchmark on one self-contained page;
 //! - [`record`]: episodes as MCAP recordings of ROS 2 messages;
 //! - [`render`]: pictures of a scene or an episode (PNG, SVG) and animations (GIF).
 
@@ -17,4 +18,5 @@ pub mod latency;
 pub mod plots;
 pub mod record;
 pub mod render;
+pub mod report;
 pub mod suite;

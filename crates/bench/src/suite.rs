@@ -18,6 +18,8 @@ pub const SUITE_PRESETS: &[(&str, &str)] = &[
     ("random-static", include_str!("../../../suites/random-static.yaml")),
     ("random-dynamic", include_str!("../../../suites/random-dynamic.yaml")),
     ("barn", include_str!("../../../suites/barn.yaml")),
+    ("heldout-static", include_str!("../../../suites/heldout-static.yaml")),
+    ("heldout-dynamic", include_str!("../../../suites/heldout-dynamic.yaml")),
 ];
 
 /// A suite file.
@@ -141,6 +143,9 @@ pub struct SuiteResult {
     pub seed: u64,
     /// Results, scenario-major.
     pub cells: Vec<CellResult>,
+    /// What the checks before the first episode warned about (a robot outside a policy's
+    /// trained envelope).
+    pub warnings: Vec<String>,
 }
 
 /// The suite's scenarios compiled for `robot` (default: each scenario's) and the default task,
@@ -213,10 +218,16 @@ pub fn run_suite(
     }
     let setups = suite_setups_scored(suite, robot)?;
     let bad = |name: &str, message: &str| BenchError::Controller { name: name.into(), message: message.into() };
+    let mut warnings = Vec::new();
     for c in controllers {
         for (setup, _) in &setups {
-            check(c, setup)
-                .map_err(|e| bad(c, &format!("{} on {}: {e}", setup.robot.name, setup.scenario.spec().name)))?;
+            for w in check(c, setup)
+                .map_err(|e| bad(c, &format!("{} on {}: {e}", setup.robot.name, setup.scenario.spec().name)))?
+            {
+                if !warnings.contains(&w) {
+                    warnings.push(w);
+                }
+            }
         }
     }
     let mut cells = Vec::new();
@@ -249,7 +260,12 @@ pub fn run_suite(
             progress(cells.len(), total);
         }
     }
-    Ok(SuiteResult { suite: suite.name.clone(), robot: setups[0].0.robot.name.clone(), seed, cells })
+    Ok(SuiteResult { suite: suite.name.clone(), robot: setups[0].0.robot.name.clone(), seed, cells, warnings })
+}
+
+/// `87% [79–92]`: a rate with its interval, in percent.
+pub fn rate_ci(rate: f32, ci: [f32; 2]) -> String {
+    format!("{:.0}% [{:.0}–{:.0}]", 100.0 * rate, 100.0 * ci[0], 100.0 * ci[1])
 }
 
 /// Mean and (population) standard deviation.
@@ -262,13 +278,36 @@ fn mean_std(v: &[f32]) -> (f32, f32) {
 }
 
 impl SuiteResult {
+    /// Each controller's summary over every episode of the suite, in the order controllers
+    /// were given.
+    pub fn pooled(&self) -> Vec<(String, EvalSummary)> {
+        let mut order: Vec<&str> = Vec::new();
+        for c in &self.cells {
+            if !order.contains(&c.controller.as_str()) {
+                order.push(&c.controller);
+            }
+        }
+        order
+            .into_iter()
+            .map(|name| {
+                let eps: Vec<EpisodeStats> = self
+                    .cells
+                    .iter()
+                    .filter(|c| c.controller == name)
+                    .flat_map(|c| c.episodes.iter().copied())
+                    .collect();
+                (name.to_string(), EvalSummary::of(&eps))
+            })
+            .collect()
+    }
+
     /// The article's table as Markdown: per scenario and controller, success rate, task time,
     /// minimum lidar range, average linear velocity and final distance to the target (mean ±
     /// standard deviation; task time over successful episodes).
     pub fn markdown(&self) -> String {
         let barn = self.cells.iter().any(|c| c.barn_score.is_some());
         let mut s = format!(
-            "# {} with {} (seed {})\n\n| scenario | controller | success | collision | timeout | task time (s) | min lidar range (m) | avg linear velocity (m/s) | distance to target (m) |{}\n|---|---|---|---|---|---|---|---|---|{}\n",
+            "# {} with {} (seed {})\n\nRates with their 95% Wilson interval; SPL: success weighted by the A* path length; |ang. acc.|: mean absolute angular acceleration (smoothness, lower is smoother).\n\n| scenario | controller | success | collision | timeout | SPL | task time (s) | min lidar range (m) | avg linear velocity (m/s) | |ang. acc.| (rad/s²) | distance to target (m) |{}\n|---|---|---|---|---|---|---|---|---|---|---|{}\n",
             self.suite,
             self.robot,
             self.seed,
@@ -289,17 +328,38 @@ impl SuiteResult {
             };
             let r = &c.summary;
             s += &format!(
-                "| {} | {} | {:.0}% | {:.0}% | {:.0}% | {} | {} | {} | {} |{}\n",
+                "| {} | {} | {} | {} | {:.0}% | {} | {} | {} | {} | {} | {} |{}\n",
                 c.scenario,
                 c.controller,
-                100.0 * r.success_rate,
-                100.0 * r.collision_rate,
+                rate_ci(r.success_rate, r.success_ci95),
+                rate_ci(r.collision_rate, r.collision_ci95),
                 100.0 * r.timeout_rate,
+                if r.spl.is_finite() { format!("{:.2}", r.spl) } else { "–".into() },
                 pick(&|e| e.time, true),
                 pick(&|e| e.min_range, false),
                 pick(&|e| e.mean_speed, false),
+                pick(&|e| e.mean_angular_acceleration, false),
                 pick(&|e| e.final_distance, false),
                 c.barn_score.map_or(String::new(), |b| format!(" {b:.3} |")),
+            );
+        }
+        for w in &self.warnings {
+            s += &format!("\nWarning: {w}.\n");
+        }
+        // Pooled over the suite: what a suite-level claim ("98% on static rooms") rests on.
+        s += "\nOver the whole suite:\n\n| controller | episodes | success | collision | timeout | SPL | task time (s) | min lidar range (m) | |ang. acc.| (rad/s²) |\n|---|---|---|---|---|---|---|---|---|\n";
+        for (controller, r) in self.pooled() {
+            let num = |x: f32| if x.is_finite() { format!("{x:.2}") } else { "–".into() };
+            s += &format!(
+                "| {controller} | {} | {} | {} | {:.1}% | {} | {} | {} | {} |\n",
+                r.episodes,
+                rate_ci(r.success_rate, r.success_ci95),
+                rate_ci(r.collision_rate, r.collision_ci95),
+                100.0 * r.timeout_rate,
+                num(r.spl),
+                num(r.mean_task_time),
+                num(r.mean_min_range),
+                num(r.mean_angular_acceleration),
             );
         }
         if barn {

@@ -264,6 +264,50 @@ fn bench_runs_on_a_real_map() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// `report.html` is one self-contained page: tables, and per scene the distance figure and one
+/// trajectory figure per controller, all inline. With `RLNAV_CHROMIUM` (set by `.ci/run`),
+/// headless Chromium parses it into the same DOM and draws a screenshot that is not blank.
+fn check_html_report(path: &std::path::Path, scenes: usize, controllers: usize) {
+    let html = std::fs::read_to_string(path).unwrap();
+    let figures = scenes * (1 + controllers);
+    assert_eq!(html.matches("<svg").count(), figures, "{html}");
+    assert!(html.contains("Over the whole suite") && html.contains("<table"));
+    assert!(!html.contains("src=\"") && !html.contains("href=\""), "refers to files beside it");
+    let Ok(chromium) = std::env::var("RLNAV_CHROMIUM") else {
+        eprintln!("RLNAV_CHROMIUM not set: report.html is not rendered in a browser");
+        return;
+    };
+    let dir = path.parent().unwrap();
+    let run = |extra: &[String]| {
+        let mut args: Vec<String> = [
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+        ]
+        .map(String::from)
+        .to_vec();
+        args.push(format!("--user-data-dir={}", dir.join("chromium-profile").display()));
+        args.extend_from_slice(extra);
+        args.push(format!("file://{}", path.display()));
+        let out = std::process::Command::new(&chromium).args(&args).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        out.stdout
+    };
+    let dom = String::from_utf8(run(&["--dump-dom".into()])).unwrap();
+    assert_eq!(dom.matches("<svg").count(), figures, "Chromium's DOM");
+    assert!(dom.contains("<table"));
+    let shot = dir.join("report.png");
+    run(&[format!("--screenshot={}", shot.display()), "--window-size=1400,2400".into()]);
+    // A blank 1400 x 2400 page compresses to a few kB; tables and figures do not.
+    let size = std::fs::metadata(&shot).unwrap().len();
+    assert!(size > 40_000, "screenshot of {} bytes: blank?", size);
+}
+
 #[test]
 fn bench_writes_the_report() {
     let dir = std::env::temp_dir().join(format!("rlnav-cli-bench-{}", std::process::id()));
@@ -293,6 +337,9 @@ fn bench_writes_the_report() {
     assert_eq!(timing.len(), 2);
     assert!(timing.iter().all(|t| t["p50_us"].as_f64().unwrap() > 0.0));
     assert!(md.contains("Per-cycle compute"), "{md}");
+    // Rates carry their 95% interval; the suite is pooled per controller.
+    assert!(md.contains("% [") && md.contains("Over the whole suite") && md.contains("| SPL |"), "{md}");
+    check_html_report(&dir.join("report.html"), 4, 2);
     let mcap = dir.join("mcap/paper-dynamic/paper-dynamic-box01/dwa/episode_000.mcap");
     assert!(std::fs::read(&mcap).unwrap().starts_with(b"\x89MCAP0\r\n"), "{}", mcap.display());
     // An independent reader (PyPI mcap + mcap-ros2-support) decodes every message from the

@@ -183,6 +183,69 @@ pub struct PolicyContract {
     /// Graph input and output names.
     #[serde(default)]
     pub io: GraphIo,
+    /// Trained to follow a global plan (absent: to steer to the goal): the observation's goal
+    /// terms describe the point `plan.lookahead` ahead along the plan, as in training.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan: Option<rlnav_sim::task::PlanConfig>,
+    /// The robots it was trained to drive and the envelope of their geometry and limits
+    /// (absent in contracts written before it, or by hand).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub envelope: Option<RobotEnvelope>,
+}
+
+/// The robots a policy was trained on, and the span of what differs between them: `[min, max]`
+/// over the robots, widened by the per-episode jitter training applied.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotEnvelope {
+    /// Robot names.
+    pub robots: Vec<String>,
+    /// Circumscribed footprint radius (m).
+    pub footprint_radius: [f32; 2],
+    /// Wheel separation (m).
+    pub wheel_separation: [f32; 2],
+    /// Top forward speed (m/s).
+    pub max_linear: [f32; 2],
+    /// Lidar maximum range (m).
+    pub lidar_range_max: [f32; 2],
+}
+
+impl RobotEnvelope {
+    /// The envelope of `robots`, each figure widened by the relative `jitter` of
+    /// `[wheel_separation, speed]` training drew per episode.
+    pub fn of(robots: &[rlnav_sim::RobotSpec], jitter: [f32; 2]) -> Self {
+        let span = |f: &dyn Fn(&rlnav_sim::RobotSpec) -> f32, j: f32| {
+            let lo = robots.iter().map(f).fold(f32::INFINITY, f32::min);
+            let hi = robots.iter().map(f).fold(f32::NEG_INFINITY, f32::max);
+            [lo * (1.0 - j), hi * (1.0 + j)]
+        };
+        let radius = |r: &rlnav_sim::RobotSpec| rlnav_sim::Footprint::new(&r.footprint).map_or(0.0, |f| f.radius());
+        Self {
+            robots: robots.iter().map(|r| r.name.clone()).collect(),
+            footprint_radius: span(&radius, 0.0),
+            wheel_separation: span(&|r| r.wheel_separation, jitter[0]),
+            max_linear: span(&|r| r.max_linear, jitter[1]),
+            lidar_range_max: span(&|r| r.lidar.range_max, 0.0),
+        }
+    }
+
+    /// How `robot` lies outside the envelope, one line per figure (more than 10% beyond it),
+    /// empty when it is inside.
+    pub fn outside(&self, robot: &rlnav_sim::RobotSpec) -> Vec<String> {
+        let radius = rlnav_sim::Footprint::new(&robot.footprint).map_or(0.0, |f| f.radius());
+        let mut out = Vec::new();
+        for (what, v, [lo, hi]) in [
+            ("footprint radius", radius, self.footprint_radius),
+            ("wheel separation", robot.wheel_separation, self.wheel_separation),
+            ("top speed", robot.max_linear, self.max_linear),
+            ("lidar range", robot.lidar.range_max, self.lidar_range_max),
+        ] {
+            if v < 0.9 * lo || v > 1.1 * hi {
+                out.push(format!("{what} {v:.3} is outside the trained {lo:.3}–{hi:.3}"));
+            }
+        }
+        out
+    }
 }
 
 impl Validate for PolicyContract {
@@ -201,6 +264,9 @@ impl Validate for PolicyContract {
         check_interval("action.angular", self.action.angular, -100.0, 100.0)?;
         check_range("control_period", self.control_period, 1e-3, 10.0)?;
         check_positive("goal_tolerance", self.goal_tolerance)?;
+        if let Some(p) = &self.plan {
+            check_range("plan.lookahead", p.lookahead, 0.1, 100.0)?;
+        }
         if self.io.obs.is_empty() || self.io.mu.is_empty() {
             return Err(Invalid::new("io", "non-empty `obs` and `mu` names"));
         }

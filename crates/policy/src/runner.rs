@@ -91,6 +91,8 @@ pub struct PolicyRunner {
     adapter: Option<ScanAdapter>,
     last: Twist,
     fault: Option<String>,
+    /// The plan segment the robot's projection lay on last (policies trained on plans).
+    plan_progress: usize,
     name: String,
 }
 
@@ -236,6 +238,7 @@ impl PolicyRunner {
             adapter: None,
             last: Twist::default(),
             fault: None,
+            plan_progress: 0,
             name,
             contract,
         };
@@ -274,6 +277,7 @@ impl PolicyRunner {
         }
         self.observer.reset();
         self.last = Twist::default();
+        self.plan_progress = 0;
     }
 
     /// Runs the network on a raw observation (length [`PolicyContract::obs_dim`]), advancing
@@ -315,7 +319,14 @@ impl PolicyRunner {
             self.adapter = Some(ScanAdapter::new(&self.contract.scan, &o.scan, mount_yaw)?);
         }
         self.adapter.as_ref().expect("set above").adapt(&o.scan, &mut self.scan)?;
-        let (goal_distance, goal_bearing) = o.goal_polar();
+        // A policy trained on plans steers to the point a lookahead ahead on the robot's plan.
+        let target = match &self.contract.plan {
+            Some(p) if !o.plan.is_empty() => {
+                rlnav_sim::plan::plan_subgoal(&o.plan, &mut self.plan_progress, o.pose.position(), p.lookahead)
+            }
+            _ => o.goal,
+        };
+        let (goal_distance, goal_bearing) = o.pose.polar_of(target);
         let inputs = ObservationInputs {
             ranges: &self.scan,
             goal_distance,

@@ -27,6 +27,8 @@ fn contract(io: GraphIo) -> PolicyContract {
         control_period: 0.1,
         goal_tolerance: 0.3,
         io,
+        plan: None,
+        envelope: None,
     }
 }
 

@@ -33,6 +33,8 @@ fn contract_for(setup: &EnvSetup) -> PolicyContract {
         control_period: setup.task.control_period,
         goal_tolerance: setup.task.goal_tolerance,
         io: GraphIo::default(),
+        plan: setup.task.plan.clone(),
+        envelope: None,
     }
 }
 
@@ -45,6 +47,26 @@ fn runner_sees_what_the_simulator_feeds_training() {
     let mut runner = PolicyRunner::from_proto("test.onnx", &proto, contract_for(&setup)).unwrap();
     let mut env = NavEnv::new(setup.clone(), 5).unwrap();
     let steps = common::runner_matches_simulator(&mut runner, &mut env, "static-room");
+    assert!(steps > 20, "{steps} steps compared");
+}
+
+#[test]
+fn runner_follows_the_plan_as_the_simulator_does() {
+    // A U-shaped dead end between start and goal: the plan turns, so the target is not the goal.
+    let spec = rlnav_sim::ScenarioSpec::load("heldout-static-u-trap").unwrap();
+    let task =
+        rlnav_sim::TaskConfig { plan: Some(rlnav_sim::task::PlanConfig { lookahead: 1.0 }), ..Default::default() };
+    let setup = Arc::new(EnvSetup::new(spec, rlnav_sim::RobotSpec::load("jetbot").unwrap(), task).unwrap());
+    let net =
+        ActorCritic::seeded(&NetworkConfig { hidden: vec![32], ..Default::default() }, 124, 2, &Device::flex(), 4);
+    let contract = contract_for(&setup);
+    assert!(contract.plan.is_some());
+    let proto = export_model(&net, &RunningMeanStd::new(124), &contract).unwrap();
+    let mut runner = PolicyRunner::from_proto("test.onnx", &proto, contract).unwrap();
+    let mut env = NavEnv::new(setup.clone(), 6).unwrap();
+    assert!(env.plan().len() >= 3, "a plan round the U: {:?}", env.plan());
+    assert!((env.target() - env.goal()).length() > 0.5, "the target is on the plan, not the goal");
+    let steps = common::runner_matches_simulator(&mut runner, &mut env, "u-trap with a plan");
     assert!(steps > 20, "{steps} steps compared");
 }
 

@@ -370,51 +370,7 @@ struct Plan {
     progress: usize,
 }
 
-/// The point `lookahead` ahead along `path` (path length) of the robot at `p`: the robot is
-/// projected on the nearest segment among those from `*progress` up to a few lookaheads
-/// further (so a path that loops back past the robot is not cut short), `*progress` moves to
-/// that segment, and the point is the path's end when less than `lookahead` remains. Points
-/// are in one frame; `path` has at least one point.
-pub fn plan_subgoal(path: &[Vec2], progress: &mut usize, p: Vec2, lookahead: f32) -> Vec2 {
-    if path.len() < 2 {
-        return path[0];
-    }
-    let last = path.len() - 2;
-    let start = (*progress).min(last);
-    // Nearest segment within reach: up to 2 lookaheads plus the robot's distance from the
-    // current segment along the path.
-    let reach = 2.0 * lookahead + rlnav_sim::geometry::point_segment_distance(p, path[start], path[start + 1]);
-    let (mut best, mut best_d, mut best_t) = (start, f32::INFINITY, 0.0);
-    let mut walked = 0.0;
-    for k in start..=last {
-        let (a, b) = (path[k], path[k + 1]);
-        let e = b - a;
-        let len2 = e.length_squared();
-        let t = if len2 > 0.0 { ((p - a).dot(e) / len2).clamp(0.0, 1.0) } else { 0.0 };
-        let d = (a + e * t - p).length();
-        if d < best_d {
-            (best, best_d, best_t) = (k, d, t);
-        }
-        walked += len2.sqrt();
-        if walked > reach {
-            break;
-        }
-    }
-    *progress = best;
-    // Walk `lookahead` along the path from the projection.
-    let mut left = lookahead;
-    let mut from = path[best] + (path[best + 1] - path[best]) * best_t;
-    for k in best..=last {
-        let to = path[k + 1];
-        let step = (to - from).length();
-        if step >= left {
-            return from + (to - from) * (left / step);
-        }
-        left -= step;
-        from = to;
-    }
-    path[last + 1]
-}
+pub use rlnav_sim::plan::plan_subgoal;
 
 /// The policy node's logic.
 pub struct PolicyNode {
@@ -454,7 +410,10 @@ impl PolicyNode {
     /// The node for `runner` with `params`.
     pub fn new(runner: PolicyRunner, params: NodeParams) -> Self {
         let tolerance = params.goal_tolerance.unwrap_or(runner.contract().goal_tolerance);
-        let lookahead = params.lookahead.unwrap_or((0.5 * runner.contract().scan.range_max).clamp(0.5, 2.0));
+        // The lookahead the policy was trained with, else half the lidar's range.
+        let trained = runner.contract().plan.as_ref().map(|p| p.lookahead);
+        let lookahead =
+            params.lookahead.or(trained).unwrap_or((0.5 * runner.contract().scan.range_max).clamp(0.5, 2.0));
         let goal = params.goal.map(|g| Vec2::new(g[0] as f32, g[1] as f32));
         Self {
             params,
@@ -773,6 +732,8 @@ impl PolicyNode {
             goal: target,
             last_command: self.last_command,
             time: (now - started) as f32,
+            // The node follows plans itself (`target`): the policy sees the target as its goal.
+            plan: Default::default(),
         };
         match self.runner.try_act(&obs) {
             Ok(c) => (self.cap(c), NodeState::Driving),

@@ -74,6 +74,9 @@ pub struct RobotObservation {
     pub last_command: Twist,
     /// Time since the episode started (s).
     pub time: f32,
+    /// The global plan to the goal, corner points in the odometry frame, as a planner with
+    /// the room's map gives a Nav2 controller (empty: none; then the goal alone).
+    pub plan: std::sync::Arc<[Vec2]>,
 }
 
 impl RobotObservation {

@@ -12,6 +12,8 @@
 //! - [`movers`] and [`people`]: moving obstacles, and pedestrians that avoid each other (ORCA);
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
 //!   [`placement`]: start/goal candidates listed once per fixed map world;
+//! - [`reachability`]: where a robot can drive, and the shortest path past the static world;
+//!   [`plan`]: following a global plan like a Nav2 controller (a subgoal a lookahead ahead);
 //! - [`observation`]: the observation layout ([`ObservationLayout`]) and the builder that the
 //!   simulator and deployed policies share;
 //! - [`task`]: the navigation task (observation, action scaling, reward, termination);
@@ -45,6 +47,7 @@ pub mod movers;
 pub mod observation;
 pub mod people;
 pub mod placement;
+pub mod plan;
 pub mod reachability;
 pub mod robot;
 pub mod scenario;

@@ -128,6 +128,92 @@ impl ReachabilityGrid {
         })
     }
 
+    /// Length of the shortest path from `a` to `b` that keeps the robot's clearance (m), or
+    /// `None` when they are not connected: Theta* (A* whose nodes may take any node in line of
+    /// sight as parent) over the free cells, so that the length is close to the any-angle
+    /// shortest path rather than a grid staircase (what SPL compares a driven path with).
+    pub fn shortest_path_length(&self, a: Vec2, b: Vec2) -> Option<f32> {
+        let path = self.shortest_path(a, b)?;
+        Some(path.windows(2).map(|w| (w[1] - w[0]).length()).sum())
+    }
+
+    /// The shortest path of [`Self::shortest_path_length`]: its corners, from `a` to `b`.
+    pub fn shortest_path(&self, a: Vec2, b: Vec2) -> Option<Vec<Vec2>> {
+        if !self.connected(a, b) {
+            return None;
+        }
+        let w = self.width;
+        let index = |p: Vec2| {
+            let q = (p - self.origin) / self.resolution;
+            (q.y as usize) * w + q.x as usize
+        };
+        let (src, dst) = (index(a), index(b));
+        // The exact start and goal stand for their cells; other nodes are cell centres.
+        let point = |i: usize| match i {
+            _ if i == src => a,
+            _ if i == dst => b,
+            _ => {
+                self.origin
+                    + Vec2::new(((i % w) as f32 + 0.5) * self.resolution, ((i / w) as f32 + 0.5) * self.resolution)
+            }
+        };
+        let sight = |p: Vec2, q: Vec2| {
+            let n = ((q - p).length() / (0.5 * self.resolution)).ceil().max(1.0) as usize;
+            (1..n).all(|k| self.label(p + (q - p) * (k as f32 / n as f32)) != 0)
+        };
+        let mut g = vec![f32::INFINITY; self.labels.len()];
+        let mut parent = vec![usize::MAX; self.labels.len()];
+        let mut closed = vec![false; self.labels.len()];
+        let mut open = std::collections::BinaryHeap::new();
+        // Non-negative f32s order as their bit patterns.
+        let key = |f: f32| std::cmp::Reverse(f.to_bits());
+        g[src] = 0.0;
+        parent[src] = src;
+        open.push((key((b - a).length()), src));
+        while let Some((_, c)) = open.pop() {
+            if c == dst {
+                let mut path = vec![b];
+                let mut k = dst;
+                while k != src {
+                    k = parent[k];
+                    path.push(point(k));
+                }
+                path.reverse();
+                return Some(path);
+            }
+            if std::mem::replace(&mut closed[c], true) {
+                continue;
+            }
+            let (x, y) = ((c % w) as isize, (c / w) as isize);
+            for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= w as isize || ny >= self.height as isize {
+                    continue;
+                }
+                let n = ny as usize * w + nx as usize;
+                if self.labels[n] == 0 || closed[n] {
+                    continue;
+                }
+                if dx != 0
+                    && dy != 0
+                    && (self.labels[y as usize * w + nx as usize] == 0
+                        || self.labels[ny as usize * w + x as usize] == 0)
+                {
+                    continue;
+                }
+                let pc = parent[c];
+                let (from, via) = if sight(point(pc), point(n)) { (pc, g[pc]) } else { (c, g[c]) };
+                let cost = via + (point(n) - point(from)).length();
+                if cost < g[n] {
+                    g[n] = cost;
+                    parent[n] = from;
+                    open.push((key(cost + (b - point(n)).length()), n));
+                }
+            }
+        }
+        None
+    }
+
     /// Fraction of cells that are free.
     pub fn free_fraction(&self) -> f32 {
         self.labels.iter().filter(|l| **l != 0).count() as f32 / self.labels.len() as f32
@@ -165,5 +251,29 @@ mod tests {
         assert!(!g.connected(a, b), "too narrow for 0.35 m");
         assert_eq!(g.label(Vec2::new(0.0, 0.0)), 0, "on the wall");
         assert_eq!(g.label(Vec2::new(5.0, 0.0)), 0, "outside");
+    }
+
+    #[test]
+    fn shortest_path_goes_round_a_wall_taut() {
+        let area = Rect { min: Vec2::splat(-2.0), max: Vec2::splat(2.0) };
+        let (a, b) = (Vec2::new(-1.0, 0.0), Vec2::new(1.0, 0.0));
+        // Open room: the straight line, not a grid staircase.
+        let g = ReachabilityGrid::new(&walls(4.0, vec![]), area, 0.2, 0.05);
+        let l = g.shortest_path_length(a, b + Vec2::new(0.0, 0.7)).unwrap();
+        assert!((l - 2.0f32.hypot(0.7)).abs() < 0.03, "{l}");
+        // A wall from the floor to y = 1.0 at x = 0: round its end, which the free cells keep
+        // r = 0.2 m + half a cell away: two tangents to that disc and the arc between them.
+        let w = walls(4.0, vec![ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 1.0] }]);
+        let g = ReachabilityGrid::new(&w, area, 0.2, 0.05);
+        let l = g.shortest_path_length(a, b).unwrap();
+        let (r, d) = (0.225f32, 2.0f32.sqrt());
+        let arc = 1.5 * std::f32::consts::PI - 2.0 * (r / d).acos();
+        let ideal = 2.0 * (d * d - r * r).sqrt() + r * arc;
+        // Lines of sight need their samples in free cells: up to a few centimetres wider.
+        assert!(l >= ideal - 0.01 && l < ideal + 0.12, "{l} vs {ideal}");
+        // Cut off entirely: none.
+        let w = walls(4.0, vec![ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 2.0] }]);
+        let g = ReachabilityGrid::new(&w, area, 0.2, 0.05);
+        assert_eq!(g.shortest_path_length(a, b), None);
     }
 }

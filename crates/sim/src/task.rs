@@ -9,6 +9,7 @@ use crate::movers::Mover;
 pub use crate::observation::{HistoryFill, HistoryOrder, ObsTerm, ObservationLayout};
 use crate::observation::{ObservationBuilder, ObservationInputs};
 use crate::people::{Crowd, Person};
+use crate::reachability::ReachabilityGrid;
 use crate::robot::{DiffDrive, DriveParams, Footprint, RobotSpec};
 use crate::scenario::{NoEpisode, Scenario, ScenarioSpec};
 use crate::world::World;
@@ -163,6 +164,18 @@ pub struct TaskConfig {
     pub observation: ObservationLayout,
     /// Domain randomisation (all off by default).
     pub randomization: RandomizationConfig,
+    /// Follow a global plan like a Nav2 controller (off by default): the episode's shortest
+    /// path past the static world is planned at reset, the observation's goal terms describe
+    /// the point `lookahead` ahead along it, and progress is rewarded along the path.
+    pub plan: Option<PlanConfig>,
+}
+
+/// How a task follows its global plan.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanConfig {
+    /// Distance along the plan to the point the policy steers to (m).
+    pub lookahead: f32,
 }
 
 impl Default for TaskConfig {
@@ -177,6 +190,7 @@ impl Default for TaskConfig {
             reward: RewardConfig::default(),
             observation: ObservationLayout::default(),
             randomization: RandomizationConfig::default(),
+            plan: None,
         }
     }
 }
@@ -197,6 +211,9 @@ impl Validate for TaskConfig {
         }
         check_positive("goal_tolerance", self.goal_tolerance)?;
         check_range("collision_range", self.collision_range, 0.0, 10.0)?;
+        if let Some(p) = &self.plan {
+            check_range("plan.lookahead", p.lookahead, 0.1, 100.0)?;
+        }
         check_interval("action.linear", self.action.linear, -100.0, 100.0)?;
         check_interval("action.angular", self.action.angular, -100.0, 100.0)?;
         let r = &self.reward;
@@ -267,6 +284,14 @@ pub struct EpisodeStats {
     /// Smallest gap between the robot's circumscribed circle and a person (m; +inf without
     /// people).
     pub min_person_gap: f32,
+    /// Mean absolute angular acceleration of the body (rad/s², from the measured yaw rate at
+    /// each control step): how smoothly it turned.
+    #[serde(default)]
+    pub mean_angular_acceleration: f32,
+    /// Shortest path from start to goal that keeps the robot's clearance, past the static
+    /// world (m; NaN when not measured: only [`NavEnv::run_to_end`] measures it).
+    #[serde(default = "nan", deserialize_with = "null_as_nan")]
+    pub optimal_path_length: f32,
 }
 
 /// What a set of finished episodes measured: the rates and means that training's periodic
@@ -297,6 +322,32 @@ pub struct EvalSummary {
     /// Mean path length (m).
     #[serde(default)]
     pub mean_path_length: f32,
+    /// 95% Wilson score interval of the success rate.
+    #[serde(default)]
+    pub success_ci95: [f32; 2],
+    /// 95% Wilson score interval of the collision rate.
+    #[serde(default)]
+    pub collision_ci95: [f32; 2],
+    /// Success weighted by path length (Anderson et al. 2018): the mean over episodes of
+    /// success × L / max(P, L), L the shortest path past the static world, P the path driven
+    /// (NaN when L was not measured).
+    #[serde(default = "nan", deserialize_with = "null_as_nan")]
+    pub spl: f32,
+    /// Mean absolute angular acceleration (rad/s²): lower is smoother.
+    #[serde(default)]
+    pub mean_angular_acceleration: f32,
+}
+
+/// The 95% Wilson score interval of a rate of `k` in `n` (`[0, 1]` for no trials): unlike
+/// the normal approximation it stays inside [0, 1] and is honest at 0% and 100%.
+pub fn wilson_interval(k: usize, n: usize) -> [f32; 2] {
+    if n == 0 {
+        return [0.0, 1.0];
+    }
+    let (n, p, z) = (n as f64, k as f64 / n as f64, 1.959_963_984_540_054_f64);
+    let centre = (p + z * z / (2.0 * n)) / (1.0 + z * z / n);
+    let half = z / (1.0 + z * z / n) * (p * (1.0 - p) / n + z * z / (4.0 * n * n)).sqrt();
+    [(centre - half).max(0.0) as f32, (centre + half).min(1.0) as f32]
 }
 
 fn nan() -> f32 {
@@ -315,6 +366,7 @@ impl EvalSummary {
         let rate = |o: Outcome| eps.iter().filter(|e| e.outcome == o).count() as f32 / n;
         let mean = |f: &dyn Fn(&EpisodeStats) -> f32| eps.iter().map(f).sum::<f32>() / n;
         let wins: Vec<f32> = eps.iter().filter(|e| e.outcome == Outcome::Success).map(|e| e.time).collect();
+        let count = |o: Outcome| eps.iter().filter(|e| e.outcome == o).count();
         Self {
             episodes: eps.len(),
             success_rate: rate(Outcome::Success),
@@ -325,6 +377,17 @@ impl EvalSummary {
             mean_min_range: mean(&|e| if e.min_range.is_finite() { e.min_range } else { 0.0 }),
             mean_speed: mean(&|e| e.mean_speed),
             mean_path_length: mean(&|e| e.path_length),
+            success_ci95: wilson_interval(count(Outcome::Success), eps.len()),
+            collision_ci95: wilson_interval(count(Outcome::Collision), eps.len()),
+            spl: if eps.is_empty() || eps.iter().any(|e| !e.optimal_path_length.is_finite()) {
+                f32::NAN
+            } else {
+                mean(&|e| {
+                    let l = e.optimal_path_length;
+                    if e.outcome == Outcome::Success { l / e.path_length.max(l).max(1e-6) } else { 0.0 }
+                })
+            },
+            mean_angular_acceleration: mean(&|e| e.mean_angular_acceleration),
         }
     }
 }
@@ -456,6 +519,23 @@ pub struct NavEnv {
     applied: Twist,
     speed_scale: f32,
     goal_velocity: Vec2,
+    /// This episode's free space, start and goal (for its shortest path).
+    reach: Option<Arc<ReachabilityGrid>>,
+    start: Vec2,
+    first_goal: Vec2,
+    angular_acceleration_sum: f32,
+    /// The global plan being followed (empty: none) and the path length from each corner
+    /// to its end.
+    plan: Arc<[Vec2]>,
+    plan_suffix: Vec<f32>,
+    plan_progress: usize,
+    /// Where the policy steers: the goal, or the plan's point a lookahead ahead.
+    target: Vec2,
+    /// The plan controllers are given in [`NavEnv::run_to_end`] when the scenario's static
+    /// world is known in advance (a prior map, as DWA is given one); empty otherwise.
+    prior_plan: Arc<[Vec2]>,
+    /// The empty plan, shared.
+    no_plan: Arc<[Vec2]>,
 }
 
 impl NavEnv {
@@ -492,6 +572,16 @@ impl NavEnv {
             applied: Twist::default(),
             speed_scale: 1.0,
             goal_velocity: Vec2::ZERO,
+            reach: None,
+            start: Vec2::ZERO,
+            first_goal: Vec2::ZERO,
+            angular_acceleration_sum: 0.0,
+            plan: Arc::from(Vec::new()),
+            plan_suffix: Vec::new(),
+            plan_progress: 0,
+            target: Vec2::ZERO,
+            prior_plan: Arc::from(Vec::new()),
+            no_plan: Arc::from(Vec::new()),
             setup,
         };
         env.reset()?;
@@ -530,9 +620,25 @@ impl NavEnv {
         self.applied = Twist::default();
         self.goal = ep.goal;
         self.goal_velocity = ep.goal_velocity;
+        self.start = ep.start.position();
+        self.first_goal = ep.goal;
+        self.angular_acceleration_sum = 0.0;
+        // A goal that moves has no fixed plan; it is steered to directly.
+        let plan = match &self.setup.task.plan {
+            Some(_) if ep.goal_velocity == Vec2::ZERO => ep.reach.shortest_path(self.start, ep.goal),
+            _ => None,
+        };
+        // Without a plan nothing is allocated (a fixed world's reset allocates nothing).
+        self.plan_suffix = plan.as_deref().map(crate::plan::suffix_lengths).unwrap_or_default();
+        self.plan = plan.map_or_else(|| self.no_plan.clone(), Arc::from);
+        self.plan_progress = 0;
+        // A world known in advance is a prior map: controllers get the plan too.
+        self.prior_plan =
+            if self.setup.scenario.fixed_world().is_some() { self.plan.clone() } else { self.no_plan.clone() };
+        self.reach = Some(ep.reach);
         self.last_command = Twist::default();
-        self.distance = (self.goal - ep.start.position()).length();
-        self.initial_distance = self.distance;
+        self.initial_distance = (self.goal - ep.start.position()).length();
+        self.distance = self.update_target();
         self.steps = 0;
         self.episode_return = 0.0;
         self.speed_sum = 0.0;
@@ -603,6 +709,7 @@ impl NavEnv {
         let cmd = self.pending.pop_front().unwrap_or(given);
         self.applied = cmd;
         let mut contact = false;
+        let yaw_rate_before = self.drive.velocity.angular;
         let robot_radius = setup.footprint.radius();
         // People keep the robot's clearance (footprint or collision range, plus margin) away.
         let personal = setup.scenario.clearance();
@@ -630,6 +737,7 @@ impl NavEnv {
             }
         }
         self.last_command = given;
+        self.angular_acceleration_sum += (self.drive.velocity.angular - yaw_rate_before).abs() / task.control_period;
         self.speed_sum += self.drive.velocity.linear.abs();
         self.steps += 1;
         self.scan();
@@ -637,8 +745,10 @@ impl NavEnv {
         self.min_range = self.min_range.min(r_min);
 
         let d = (self.goal - self.drive.pose.position()).length();
+        // Progress towards the goal, along the plan when there is one.
+        let remaining = self.update_target();
         let rw = &task.reward;
-        let mut reward = rw.progress * (self.distance - d);
+        let mut reward = rw.progress * (self.distance - remaining);
         if !self.crowd.is_empty() {
             let here = self.drive.pose.position();
             self.min_person_gap = self.min_person_gap.min(self.crowd.min_gap(here, robot_radius));
@@ -649,7 +759,7 @@ impl NavEnv {
         if r_min < rw.proximity_range {
             reward -= rw.proximity * (-r_min).exp();
         }
-        self.distance = d;
+        self.distance = remaining;
         let outcome = if contact || r_min < task.collision_range {
             reward += rw.collision;
             Some(Outcome::Collision)
@@ -678,6 +788,8 @@ impl NavEnv {
                 wheel_separation: self.drive.params.wheel_separation,
                 speed_scale: self.speed_scale,
                 min_person_gap: self.min_person_gap,
+                mean_angular_acceleration: self.angular_acceleration_sum / self.steps as f32,
+                optimal_path_length: f32::NAN,
             });
         }
         StepOutcome {
@@ -691,7 +803,7 @@ impl NavEnv {
     /// terms shows the values written at the previous steps of the episode (or, for a step
     /// taken without a write, the values it would have written).
     pub fn write_observation(&mut self, out: &mut [f32]) {
-        let (mut dist, mut bearing) = self.goal_polar();
+        let (mut dist, mut bearing) = self.drive.pose.polar_of(self.target);
         let dr = &self.setup.task.randomization;
         if dr.obs_goal_distance_std > 0.0 {
             dist = (dist + dr.obs_goal_distance_std * self.rng.sample::<f32, _>(StandardNormal)).max(0.0);
@@ -720,6 +832,35 @@ impl NavEnv {
         self.drive.pose.polar_of(self.goal)
     }
 
+    /// Moves the target to where the robot is now (the goal, or the point a lookahead ahead
+    /// along the plan) and returns the distance left to the goal: straight, or via the target
+    /// and the rest of the plan.
+    fn update_target(&mut self) -> f32 {
+        let here = self.drive.pose.position();
+        match &self.setup.task.plan {
+            Some(p) if !self.plan.is_empty() => {
+                let s = crate::plan::follow(&self.plan, &self.plan_suffix, &mut self.plan_progress, here, p.lookahead);
+                self.target = s.point;
+                (s.point - here).length() + s.rest
+            }
+            _ => {
+                self.target = self.goal;
+                (self.goal - here).length()
+            }
+        }
+    }
+
+    /// Where the policy steers now: the goal, or with a plan the point a lookahead ahead
+    /// along it.
+    pub fn target(&self) -> Vec2 {
+        self.target
+    }
+
+    /// The global plan the task follows this episode (empty without one).
+    pub fn plan(&self) -> &Arc<[Vec2]> {
+        &self.plan
+    }
+
     /// Fills what a robot's topics would carry (scan, odometry, goal) for a [`Controller`].
     pub fn robot_observation(&self, out: &mut RobotObservation) {
         let spec = self.setup.lidar.spec();
@@ -734,6 +875,16 @@ impl NavEnv {
         out.goal = self.goal;
         out.last_command = self.last_command;
         out.time = self.steps as f32 * self.setup.task.control_period;
+        if !Arc::ptr_eq(&out.plan, &self.prior_plan) {
+            out.plan = self.prior_plan.clone();
+        }
+    }
+
+    /// The shortest path from this episode's start to its (first) goal past the static world,
+    /// keeping the robot's clearance (m; `None` if they are not connected at that clearance).
+    /// A Dijkstra search over the world's free cells: evaluation uses it, training does not.
+    pub fn shortest_path_length(&self) -> Option<f32> {
+        self.reach.as_ref()?.shortest_path_length(self.start, self.first_goal)
     }
 
     /// The statistics of the episode that ended last (`None` before the first ends).
@@ -807,7 +958,18 @@ impl NavEnv {
     /// Runs the current episode to its end under `controller` (reset first), calling
     /// `on_step(self)` at the start and after every control step; the environment is left at
     /// the end (not reset), so the episode's last state can still be read.
+    /// Measures the episode's shortest path (for SPL) first; with a static world known in
+    /// advance, controllers are given it as their plan ([`RobotObservation::plan`]).
     pub fn run_to_end(&mut self, controller: &mut dyn Controller, mut on_step: impl FnMut(&Self)) -> EpisodeStats {
+        let path = match self.plan.is_empty() {
+            true => self.reach.as_ref().and_then(|r| r.shortest_path(self.start, self.first_goal)),
+            false => Some(self.plan.to_vec()),
+        };
+        let optimal = path.as_ref().map_or(f32::NAN, |p| p.windows(2).map(|w| (w[1] - w[0]).length()).sum());
+        self.prior_plan = match path {
+            Some(p) if self.setup.scenario.fixed_world().is_some() && self.goal_velocity == Vec2::ZERO => Arc::from(p),
+            _ => self.no_plan.clone(),
+        };
         controller.reset();
         on_step(self);
         let mut obs = RobotObservation::default();
@@ -816,7 +978,9 @@ impl NavEnv {
             let out = self.step_twist(controller.act(&obs));
             on_step(self);
             if out.terminated || out.truncated {
-                return self.last_episode.expect("set when an episode ends");
+                let stats = self.last_episode.as_mut().expect("set when an episode ends");
+                stats.optimal_path_length = optimal;
+                return *stats;
             }
         }
     }
@@ -867,6 +1031,45 @@ mod tests {
         // Blind to walls and unable to turn on the spot (v >= 0.1 m/s), it sometimes starts
         // facing a wall with the goal behind it; everything else it reaches.
         assert!(successes >= 34, "{successes}/40");
+    }
+
+    #[test]
+    fn spl_and_smoothness_of_a_greedy_run() {
+        let mut env = NavEnv::new(setup("empty-room"), 7).unwrap();
+        let mut c = GreedyGoal::default();
+        let eps: Vec<EpisodeStats> = (0..20)
+            .map(|_| {
+                let s = env.run_to_end(&mut c, |_| {});
+                env.reset().unwrap();
+                s
+            })
+            .collect();
+        for e in &eps {
+            // In an empty room the shortest path is the straight line, less the goal's radius
+            // not counted: from start to goal centre.
+            assert!((e.optimal_path_length - e.initial_distance).abs() < 0.02, "{e:?}");
+            assert!(e.mean_angular_acceleration.is_finite() && e.mean_angular_acceleration >= 0.0);
+        }
+        let s = EvalSummary::of(&eps);
+        // Greedy turns towards the goal and drives straight: SPL a little below its success
+        // rate (the turn-in arc), never above it.
+        assert!(s.spl <= s.success_rate + 1e-6 && s.spl > 0.7 * s.success_rate, "{s:?}");
+        assert!(s.success_ci95[0] <= s.success_rate && s.success_rate <= s.success_ci95[1]);
+        // Episodes stepped without `run_to_end` have no shortest path: SPL is unknown.
+        let mut unknown = eps.clone();
+        unknown[0].optimal_path_length = f32::NAN;
+        assert!(EvalSummary::of(&unknown).spl.is_nan());
+    }
+
+    #[test]
+    fn wilson_intervals_match_published_values() {
+        // Newcombe (1998), table I, and the closed form: 0/10, 5/10, 10/10, 81/263.
+        let close = |a: [f32; 2], b: [f32; 2]| (a[0] - b[0]).abs() < 5e-4 && (a[1] - b[1]).abs() < 5e-4;
+        assert!(close(wilson_interval(0, 10), [0.0, 0.2775]), "{:?}", wilson_interval(0, 10));
+        assert!(close(wilson_interval(5, 10), [0.2366, 0.7634]), "{:?}", wilson_interval(5, 10));
+        assert!(close(wilson_interval(10, 10), [0.7225, 1.0]), "{:?}", wilson_interval(10, 10));
+        assert!(close(wilson_interval(81, 263), [0.2553, 0.3662]), "{:?}", wilson_interval(81, 263));
+        assert_eq!(wilson_interval(0, 0), [0.0, 1.0]);
     }
 
     #[test]

@@ -46,15 +46,36 @@ const CHUNK: usize = 16;
 impl VecEnv {
     /// Builds `n` environments on `threads` worker threads (0: rayon's default).
     pub fn new(setup: Arc<EnvSetup>, n: usize, seed: u64, threads: usize) -> Result<Self, SimError> {
+        Self::new_mixed(std::slice::from_ref(&setup), n, seed, threads)
+    }
+
+    /// Builds `n` environments, environment `i` with `setups[i % setups.len()]` (several
+    /// robots, say, in one batch), on `threads` worker threads (0: rayon's default). The
+    /// setups must give observations of one length.
+    pub fn new_mixed(setups: &[Arc<EnvSetup>], n: usize, seed: u64, threads: usize) -> Result<Self, SimError> {
+        assert!(!setups.is_empty(), "at least one setup");
+        let d = setups[0].obs_dim();
+        if let Some(other) = setups.iter().find(|s| s.obs_dim() != d) {
+            return Err(SimError::Incompatible {
+                robot: other.robot.name.clone(),
+                message: format!(
+                    "its observation has {} values, {}'s in the same batch {d}",
+                    other.obs_dim(),
+                    setups[0].robot.name
+                ),
+            });
+        }
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("rlnav-sim-{i}"))
             .build()
             .expect("a thread pool can be built");
         let envs = pool.install(|| {
-            (0..n).into_par_iter().map(|i| NavEnv::new(setup.clone(), env_seed(seed, i))).collect::<Result<Vec<_>, _>>()
+            (0..n)
+                .into_par_iter()
+                .map(|i| NavEnv::new(setups[i % setups.len()].clone(), env_seed(seed, i)))
+                .collect::<Result<Vec<_>, _>>()
         })?;
-        let d = setup.obs_dim();
         let mut v = Self {
             envs,
             pool,

@@ -160,11 +160,41 @@ pub struct EvalConfig {
     /// Stop the run once a periodic evaluation reaches this success rate (absent: run all
     /// `max_epochs`). The final test still runs, on fresh episodes.
     pub stop_at_success: Option<f32>,
+    /// Held-out scenarios (hand-built rooms no training scenario samples, such as the
+    /// `heldout-static` suite's) evaluated beside `scenario` at every evaluation; when given,
+    /// the best checkpoint is the one with the highest success over them.
+    pub heldout: Vec<String>,
+    /// Episodes per held-out scenario and evaluation (default 20).
+    pub heldout_episodes: usize,
+    /// Which evaluation picks the best checkpoint: `heldout` (the default; `scenario` when
+    /// there are no held-out scenarios) or `scenario`, which keeps the held-out rooms for
+    /// measuring alone (no selection bias on them).
+    pub select: Selection,
+}
+
+/// Which evaluation picks the best checkpoint.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Selection {
+    /// The held-out scenarios, when there are any.
+    #[default]
+    Heldout,
+    /// The evaluation scenario.
+    Scenario,
 }
 
 impl Default for EvalConfig {
     fn default() -> Self {
-        Self { scenario: "random-static".into(), episodes: 200, envs: 50, every: 20, stop_at_success: None }
+        Self {
+            scenario: "random-static".into(),
+            episodes: 200,
+            envs: 50,
+            every: 20,
+            stop_at_success: None,
+            heldout: Vec::new(),
+            heldout_episodes: 20,
+            select: Selection::Heldout,
+        }
     }
 }
 
@@ -180,6 +210,10 @@ pub struct RunConfig {
     pub robot: String,
     /// Training scenario when there is no curriculum.
     pub scenario: String,
+    /// Robots trained together, environment `i` driving `robots[i % n]` (in training and in
+    /// evaluations), so that one policy learns to drive them all; empty (the default): `robot`
+    /// alone. Their observations must have one length.
+    pub robots: Vec<String>,
     /// The task.
     pub task: TaskConfig,
     /// The network.
@@ -199,6 +233,7 @@ impl Default for RunConfig {
             seed: 0,
             robot: "jetbot".into(),
             scenario: "random-static".into(),
+            robots: Vec::new(),
             task: TaskConfig::default(),
             network: NetworkConfig::default(),
             train: PpoConfig::default(),
@@ -223,6 +258,7 @@ impl Validate for RunConfig {
             ("train.threads", t.threads, 0, 1024),
             ("eval.episodes", self.eval.episodes, 1, 1_000_000),
             ("eval.envs", self.eval.envs, 1, 65_536),
+            ("eval.heldout_episodes", self.eval.heldout_episodes, 1, 65_536),
         ];
         for (k, v, lo, hi) in ints {
             if !(lo..=hi).contains(&v) {

@@ -8,18 +8,19 @@ use rlnav_sim::vec_env::VecEnv;
 use std::sync::Arc;
 
 /// Runs `episodes` episodes (`envs` at a time, `episodes / envs` each) of the learner's
-/// deterministic policy. `seed` should differ from the training seeds so that procedurally
-/// generated scenes are new to the policy. `progress` hears the count of finished episodes.
+/// deterministic policy, environment `i` with `setups[i % setups.len()]` (one robot each, say).
+/// `seed` should differ from the training seeds so that procedurally generated scenes are new
+/// to the policy. `progress` hears the count of finished episodes.
 pub fn evaluate(
     ppo: &Ppo,
-    setup: Arc<EnvSetup>,
+    setups: &[Arc<EnvSetup>],
     episodes: usize,
     envs: usize,
     seed: u64,
     threads: usize,
     progress: &mut dyn FnMut(usize),
 ) -> Result<(EvalSummary, Vec<EpisodeStats>), SimError> {
-    let mut venv = VecEnv::new(setup, envs, seed, threads)?;
+    let mut venv = VecEnv::new_mixed(setups, envs, seed, threads)?;
     let quota = episodes / envs;
     let mut done = vec![0usize; envs];
     let mut results = Vec::with_capacity(episodes);

@@ -4,7 +4,9 @@
 use crate::config::RunConfig;
 use crate::run::{TrainError, load_learner};
 use rlnav_policy::RunningMeanStd;
-use rlnav_policy::contract::{ActionContract, ActionScaling, CONTRACT_FORMAT, GraphIo, PolicyContract, ScanContract};
+use rlnav_policy::contract::{
+    ActionContract, ActionScaling, CONTRACT_FORMAT, GraphIo, PolicyContract, RobotEnvelope, ScanContract,
+};
 use rlnav_policy::export::{export_onnx, lstm_io};
 use rlnav_sim::RobotSpec;
 use std::path::Path;
@@ -32,7 +34,21 @@ pub fn run_contract(cfg: &RunConfig, robot: &RobotSpec, lstm_units: usize) -> Po
         control_period: cfg.task.control_period,
         goal_tolerance: cfg.task.goal_tolerance,
         io: if lstm_units > 0 { lstm_io(lstm_units) } else { GraphIo::default() },
+        plan: cfg.task.plan.clone(),
+        envelope: Some(RobotEnvelope::of(
+            &trained_robots(cfg, robot),
+            [cfg.task.randomization.wheel_separation_jitter, cfg.task.randomization.speed_limit_jitter],
+        )),
     }
+}
+
+/// The robots a run trains on (`robots`, or `robot` alone), `robot` given as loaded.
+fn trained_robots(cfg: &RunConfig, robot: &RobotSpec) -> Vec<RobotSpec> {
+    if cfg.robots.is_empty() {
+        return vec![robot.clone()];
+    }
+    // They loaded when training started; one that no longer loads is left out of the envelope.
+    cfg.robots.iter().filter_map(|r| RobotSpec::load(r).ok()).collect()
 }
 
 /// The ONNX bytes of a run folder's checkpoint (`best` or `checkpoint`) and its contract.

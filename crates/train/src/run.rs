@@ -92,6 +92,8 @@ pub struct EpochReport {
     pub update_s: f64,
     /// Evaluation, when one ran after this epoch.
     pub eval: Option<EvalSummary>,
+    /// Evaluation on the held-out scenarios (pooled), when one ran after this epoch.
+    pub heldout: Option<EvalSummary>,
 }
 
 /// When the periodic evaluation first reached a success rate: the cost of getting there.
@@ -132,7 +134,7 @@ pub struct Summary {
     pub last_epoch_eval: Option<EvalSummary>,
     /// Scenario of the final evaluation.
     pub eval_scenario: String,
-    /// Best evaluation success rate seen, and its epoch.
+    /// Best evaluation success rate seen (on the held-out scenarios when there are any).
     pub best_success_rate: f32,
     /// Epoch of the best evaluation.
     pub best_epoch: usize,
@@ -142,6 +144,13 @@ pub struct Summary {
     pub first_95: Option<Milestone>,
     /// Whether the run ended early because an evaluation reached `eval.stop_at_success`.
     pub reached_stop_target: bool,
+    /// The held-out scenarios (`eval.heldout`), if any.
+    #[serde(default)]
+    pub heldout_scenarios: Vec<String>,
+    /// The chosen checkpoint on the held-out scenarios, on the final test's seed (other
+    /// starts, goals and headings than selection saw, in the same rooms).
+    #[serde(default)]
+    pub final_heldout: Option<EvalSummary>,
 }
 
 /// Trainer state saved with each checkpoint.
@@ -187,11 +196,14 @@ fn stages(cfg: &RunConfig) -> Vec<StageConfig> {
 }
 
 /// Environments of the run's robot on `scenario` with `task`.
-fn env_setup(cfg: &RunConfig, scenario: &str, task: TaskConfig) -> Result<Arc<EnvSetup>, TrainError> {
-    Ok(Arc::new(EnvSetup::new(ScenarioSpec::load(scenario)?, RobotSpec::load(&cfg.robot)?, task)?))
+/// The scenario set up for each of the run's robots (`robots`, or `robot` alone).
+fn env_setup(cfg: &RunConfig, scenario: &str, task: TaskConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
+    let spec = ScenarioSpec::load(scenario)?;
+    let names = if cfg.robots.is_empty() { std::slice::from_ref(&cfg.robot) } else { cfg.robots.as_slice() };
+    names.iter().map(|r| Ok(Arc::new(EnvSetup::new(spec.clone(), RobotSpec::load(r)?, task.clone())?))).collect()
 }
 
-fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Arc<EnvSetup>, TrainError> {
+fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
     env_setup(cfg, &stage.scenario, apply_task_overrides(&cfg.task, &stage.task, &stage.name)?)
 }
 
@@ -316,7 +328,7 @@ impl Window {
     }
 }
 
-const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate,sim_s,rollout_s,update_s";
+const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate,sim_s,rollout_s,update_s,heldout_success_rate,heldout_collision_rate";
 
 fn csv_row(r: &EpochReport) -> String {
     let u = &r.update;
@@ -324,8 +336,12 @@ fn csv_row(r: &EpochReport) -> String {
         Some(e) => (e.success_rate.to_string(), e.collision_rate.to_string(), e.timeout_rate.to_string()),
         None => (String::new(), String::new(), String::new()),
     };
+    let (hs, hc) = match &r.heldout {
+        Some(e) => (e.success_rate.to_string(), e.collision_rate.to_string()),
+        None => (String::new(), String::new()),
+    };
     format!(
-        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et},{:.4},{:.4},{:.4}",
+        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et},{:.4},{:.4},{:.4},{hs},{hc}",
         r.epoch,
         r.env_steps,
         r.wall_s,
@@ -416,8 +432,8 @@ pub fn train(
     let out = &opts.out;
     let stages = stages(cfg);
     let setups = stages.iter().map(|s| stage_setup(cfg, s)).collect::<Result<Vec<_>, _>>()?;
-    let obs_dim = setups[0].obs_dim();
-    if let Some((s, _)) = setups.iter().zip(&stages).find(|(s, _)| s.obs_dim() != obs_dim) {
+    let obs_dim = setups[0][0].obs_dim();
+    if let Some((s, _)) = setups.iter().flatten().zip(&stages).find(|(s, _)| s.obs_dim() != obs_dim) {
         return Err(TrainError::Config(ConfigError::Invalid {
             file: "<curriculum>".into(),
             key: "curriculum".into(),
@@ -425,6 +441,20 @@ pub fn train(
         }));
     }
     let eval = env_setup(cfg, &cfg.eval.scenario, cfg.task.clone())?;
+    let heldout =
+        cfg.eval.heldout.iter().map(|s| env_setup(cfg, s, cfg.task.clone())).collect::<Result<Vec<_>, _>>()?;
+    // Every held-out scenario, one episode per environment (no bias to short episodes), pooled.
+    let eval_heldout = |ppo: &Ppo, seed: u64| -> Result<Option<EvalSummary>, TrainError> {
+        if heldout.is_empty() {
+            return Ok(None);
+        }
+        let mut all = Vec::new();
+        for setup in &heldout {
+            let n = cfg.eval.heldout_episodes;
+            all.extend(evaluate(ppo, setup, n, n, seed, cfg.train.threads, &mut |_| {})?.1);
+        }
+        Ok(Some(EvalSummary::of(&all)))
+    };
     let mut ppo = Ppo::new(&cfg.train, &cfg.network, obs_dim, 2, training_device(), cfg.seed);
 
     let mut st = TrainerState {
@@ -481,8 +511,8 @@ pub fn train(
 
     let threads = cfg.train.threads;
     let env_for = |stage: usize, epoch: usize| {
-        VecEnv::new(
-            setups[stage].clone(),
+        VecEnv::new_mixed(
+            &setups[stage],
             cfg.train.num_actors,
             rlnav_sim::vec_env::env_seed(cfg.seed, epoch << 8 | stage),
             threads,
@@ -521,15 +551,8 @@ pub fn train(
         let stats = EvalSummary::of(&episodes);
         let eval_now = (cfg.eval.every > 0 && st.epoch % cfg.eval.every == 0) || st.epoch == cfg.train.max_epochs;
         let eval_result = if eval_now {
-            let (r, _) = evaluate(
-                &ppo,
-                eval.clone(),
-                cfg.eval.episodes,
-                cfg.eval.envs,
-                eval_seed(cfg.seed),
-                threads,
-                &mut |_| {},
-            )?;
+            let (r, _) =
+                evaluate(&ppo, &eval, cfg.eval.episodes, cfg.eval.envs, eval_seed(cfg.seed), threads, &mut |_| {})?;
             last_eval = Some(r);
             let reached = Milestone {
                 success_rate: r.success_rate,
@@ -547,6 +570,7 @@ pub fn train(
         } else {
             None
         };
+        let heldout_result = if eval_now { eval_heldout(&ppo, eval_seed(cfg.seed))? } else { None };
         let report = EpochReport {
             epoch: st.epoch,
             max_epochs: cfg.train.max_epochs,
@@ -566,6 +590,7 @@ pub fn train(
             sim_s: ppo.sim_s,
             update_s: (t2 - t1).as_secs_f64(),
             eval: eval_result,
+            heldout: heldout_result,
         };
         writeln!(csv, "{}", csv_row(&report)).map_err(|e| io_err(&out.join("metrics.csv"), e))?;
         let step = st.env_steps as i64;
@@ -587,14 +612,25 @@ pub fn train(
         if let Some(e) = &report.eval {
             scalars.extend([("eval/success_rate", e.success_rate), ("eval/collision_rate", e.collision_rate)]);
         }
+        if let Some(e) = &report.heldout {
+            scalars.extend([
+                ("eval/heldout_success_rate", e.success_rate),
+                ("eval/heldout_collision_rate", e.collision_rate),
+            ]);
+        }
         tb.scalars(step, &scalars).map_err(|e| io_err(tb.path(), e))?;
         st.learning_rate = ppo.learning_rate();
         st.obs_norm = ppo.obs_norm.clone();
         st.value_norm = ppo.value_norm.clone();
-        if let Some(r) = eval_result
-            && r.success_rate > st.best_success_rate
+        // The best checkpoint: on the held-out rooms when there are any (unless told not to).
+        let selected = match cfg.eval.select {
+            crate::config::Selection::Heldout => heldout_result.or(eval_result),
+            crate::config::Selection::Scenario => eval_result,
+        };
+        if let Some(rate) = selected.map(|r| r.success_rate)
+            && rate > st.best_success_rate
         {
-            st.best_success_rate = r.success_rate;
+            st.best_success_rate = rate;
             st.best_epoch = st.epoch;
             save_checkpoint(&out.join("best"), &ppo, &st)?;
         }
@@ -623,8 +659,8 @@ pub fn train(
         }
     }
     save_checkpoint(&out.join("checkpoint"), &ppo, &st)?;
-    let (final_eval, final_epoch) = if interrupted {
-        (None, 0)
+    let (final_eval, final_epoch, final_heldout) = if interrupted {
+        (None, 0, None)
     } else {
         let (which, epoch) = if out.join("best").join("state.json").is_file() {
             ("best", st.best_epoch)
@@ -632,16 +668,9 @@ pub fn train(
             ("checkpoint", st.epoch)
         };
         let (_, learner) = load_learner(out, which)?;
-        let (r, _) = evaluate(
-            &learner,
-            eval.clone(),
-            cfg.eval.episodes,
-            cfg.eval.envs,
-            test_seed(cfg.seed),
-            threads,
-            &mut |_| {},
-        )?;
-        (Some(r), epoch)
+        let (r, _) =
+            evaluate(&learner, &eval, cfg.eval.episodes, cfg.eval.envs, test_seed(cfg.seed), threads, &mut |_| {})?;
+        (Some(r), epoch, eval_heldout(&learner, test_seed(cfg.seed))?)
     };
     let summary = Summary {
         name: cfg.name.clone(),
@@ -659,6 +688,8 @@ pub fn train(
         first_90: st.first_90,
         first_95: st.first_95,
         reached_stop_target,
+        heldout_scenarios: cfg.eval.heldout.clone(),
+        final_heldout,
     };
     if !interrupted {
         crate::export::write_policy(out, &out.join("policy.onnx"))?;
@@ -710,6 +741,6 @@ pub fn evaluate_run(
     let setup = env_setup(&cfg, &scenario, cfg.task.clone())?;
     let envs = envs.clamp(1, episodes.max(1));
     let episodes = episodes / envs * envs;
-    let (summary, episodes) = evaluate(&ppo, setup, episodes, envs, seed, cfg.train.threads, &mut |n| progress(n))?;
+    let (summary, episodes) = evaluate(&ppo, &setup, episodes, envs, seed, cfg.train.threads, &mut |n| progress(n))?;
     Ok(RunEvaluation { scenario, seed, summary, episodes })
 }

@@ -260,3 +260,41 @@ fn resume_errors_are_clear() {
     std::fs::remove_dir_all(out).ok();
     std::fs::remove_dir_all(not_a_run).ok();
 }
+
+#[test]
+fn held_out_rooms_several_robots_and_a_plan() {
+    let out = tmp("heldout");
+    let mut cfg = smoke(2);
+    cfg.robots = vec!["jetbot".into(), "turtlebot3-burger".into()];
+    cfg.task.plan = Some(rlnav_sim::task::PlanConfig { lookahead: 1.0 });
+    cfg.eval.every = 2;
+    cfg.eval.heldout = vec!["heldout-static-u-trap".into()];
+    cfg.eval.heldout_episodes = 2;
+    let s = train(&cfg, &opts(&out, false), &mut |_| {}).unwrap();
+    // The held-out figures are logged with the evaluation and measured again at the end.
+    let text = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "heldout_success_rate").unwrap();
+    let row: Vec<&str> = text.lines().nth(2).unwrap().split(',').collect();
+    let rate: f32 = row[col].parse().unwrap();
+    assert!((0.0..=1.0).contains(&rate), "{rate}");
+    let h = s.final_heldout.expect("a final held-out test");
+    assert_eq!(h.episodes, 2);
+    assert_eq!(s.heldout_scenarios, ["heldout-static-u-trap"]);
+    // The exported contract says what the policy was trained for.
+    let runner = rlnav_policy::PolicyRunner::load(&out.join("policy.onnx"), None).unwrap();
+    let c = runner.contract();
+    assert_eq!(c.plan.as_ref().map(|p| p.lookahead), Some(1.0));
+    let e = c.envelope.as_ref().unwrap();
+    assert_eq!(e.robots, ["jetbot", "turtlebot3-burger"]);
+    // Jetbot 0.5 m/s, Burger 0.22 m/s: both inside; the Waffle's footprint (0.257 m against
+    // 0.09-0.105 m) is not, nor are the Jackal's 2 m/s and 30 m lidar.
+    assert_eq!(e.max_linear, [0.22, 0.5]);
+    assert!(e.outside(&rlnav_sim::RobotSpec::load("turtlebot3-burger").unwrap()).is_empty());
+    let waffle = e.outside(&rlnav_sim::RobotSpec::load("turtlebot3-waffle").unwrap());
+    assert!(waffle.iter().any(|w| w.contains("footprint radius 0.257")), "{waffle:?}");
+    let jackal = e.outside(&rlnav_sim::RobotSpec::load("jackal").unwrap());
+    let says = |what: &str| jackal.iter().any(|w| w.contains(what));
+    assert!(says("top speed") && says("lidar range"), "{jackal:?}");
+    std::fs::remove_dir_all(out).ok();
+}

@@ -82,6 +82,9 @@ pub fn run(a: Args) -> Result<()> {
             bar.set_position(done as u64);
         })?;
         bar.finish_and_clear();
+        for w in &r.warnings {
+            eprintln!("warning: {w}");
+        }
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         let setups = suite_setups(spec, a.robot.as_deref())?;
         let figures = rlnav_bench::plots::write_suite_figures(&r, &setups, out).map_err(|e| anyhow::anyhow!(e))?;
@@ -107,5 +110,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     std::fs::write(out.join("report.md"), md).with_context(|| format!("writing {}/report.md", out.display()))?;
+    let html = rlnav_bench::report::write_html(out, &all).map_err(|e| anyhow::anyhow!(e))?;
+    eprintln!("report: {}", html.display());
     write_json(&out.join("report.json"), &serde_json::json!({ "suites": all, "per_cycle_compute": timing }))
 }

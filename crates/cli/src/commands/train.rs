@@ -102,6 +102,14 @@ pub fn run(a: Args) -> Result<()> {
                 100.0 * e.timeout_rate
             ));
         }
+        if let Some(e) = &r.heldout {
+            bar.println(format!(
+                "                held-out rooms ({} scenes): success {:.1}% collision {:.1}%",
+                cfg.eval.heldout.len(),
+                100.0 * e.success_rate,
+                100.0 * e.collision_rate
+            ));
+        }
     })?;
     bar.finish_and_clear();
     println!(
@@ -137,6 +145,18 @@ pub fn run(a: Args) -> Result<()> {
             summary.eval_scenario,
             e.episodes,
             100.0 * e.success_rate,
+            100.0 * e.collision_rate,
+            100.0 * e.timeout_rate
+        );
+    }
+    if let Some(e) = summary.final_heldout {
+        println!(
+            "on the held-out rooms ({}; {} episodes): success {:.1}% [95% CI {:.1}–{:.1}], collision {:.1}%, timeout {:.1}%",
+            summary.heldout_scenarios.join(", "),
+            e.episodes,
+            100.0 * e.success_rate,
+            100.0 * e.success_ci95[0],
+            100.0 * e.success_ci95[1],
             100.0 * e.collision_rate,
             100.0 * e.timeout_rate
         );

@@ -1,0 +1,97 @@
+//! Following a global plan the way a Nav2 controller does: the policy steers to a point a
+//! lookahead ahead along the path rather than to the goal itself. The ROS 2 node follows the
+//! plans Nav2 sends; training and the benchmark follow the shortest path past the static world
+//! (what a planner with the room's map would give).
+
+use crate::geometry::Vec2;
+
+/// Where [`follow`] put the target: the point and the path length still to go from it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Subgoal {
+    /// The point `lookahead` ahead along the path (or its end).
+    pub point: Vec2,
+    /// Path length from `point` to the path's end (m).
+    pub rest: f32,
+}
+
+/// As [`plan_subgoal`], with the path length left after the point; `suffix[k]` is the path
+/// length from point `k` to the end (see [`suffix_lengths`]).
+pub fn follow(path: &[Vec2], suffix: &[f32], progress: &mut usize, p: Vec2, lookahead: f32) -> Subgoal {
+    if path.len() < 2 {
+        return Subgoal { point: path[0], rest: 0.0 };
+    }
+    let last = path.len() - 2;
+    let start = (*progress).min(last);
+    // Nearest segment within reach: up to 2 lookaheads plus the robot's distance from the
+    // current segment along the path.
+    let reach = 2.0 * lookahead + crate::geometry::point_segment_distance(p, path[start], path[start + 1]);
+    let (mut best, mut best_d, mut best_t) = (start, f32::INFINITY, 0.0);
+    let mut walked = 0.0;
+    for k in start..=last {
+        let (a, b) = (path[k], path[k + 1]);
+        let e = b - a;
+        let len2 = e.length_squared();
+        let t = if len2 > 0.0 { ((p - a).dot(e) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        let d = (a + e * t - p).length();
+        if d < best_d {
+            (best, best_d, best_t) = (k, d, t);
+        }
+        walked += len2.sqrt();
+        if walked > reach {
+            break;
+        }
+    }
+    *progress = best;
+    // Walk `lookahead` along the path from the projection.
+    let mut left = lookahead;
+    let mut from = path[best] + (path[best + 1] - path[best]) * best_t;
+    for k in best..=last {
+        let to = path[k + 1];
+        let step = (to - from).length();
+        if step >= left {
+            let point = from + (to - from) * (left / step);
+            let rest = suffix.get(k + 1).map_or(0.0, |r| r + (to - point).length());
+            return Subgoal { point, rest };
+        }
+        left -= step;
+        from = to;
+    }
+    Subgoal { point: path[last + 1], rest: 0.0 }
+}
+
+/// The point `lookahead` ahead along `path` (path length) of the robot at `p`: the robot is
+/// projected on the nearest segment among those from `*progress` up to a few lookaheads
+/// further (so a path that loops back past the robot is not cut short), `*progress` moves to
+/// that segment, and the point is the path's end when less than `lookahead` remains. Points
+/// are in one frame; `path` has at least one point.
+pub fn plan_subgoal(path: &[Vec2], progress: &mut usize, p: Vec2, lookahead: f32) -> Vec2 {
+    follow(path, &[], progress, p, lookahead).point
+}
+
+/// Path length from each point to the end.
+pub fn suffix_lengths(path: &[Vec2]) -> Vec<f32> {
+    let mut out = vec![0.0; path.len()];
+    for k in (0..path.len().saturating_sub(1)).rev() {
+        out[k] = out[k + 1] + (path[k + 1] - path[k]).length();
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rest_is_the_path_left_after_the_subgoal() {
+        let l = [Vec2::new(0.0, 0.0), Vec2::new(2.0, 0.0), Vec2::new(2.0, 2.0)];
+        let suffix = suffix_lengths(&l);
+        assert_eq!(suffix, vec![4.0, 2.0, 0.0]);
+        let mut k = 0;
+        let s = follow(&l, &suffix, &mut k, Vec2::new(0.5, 0.1), 1.0);
+        assert!((s.point - Vec2::new(1.5, 0.0)).length() < 1e-5 && (s.rest - 2.5).abs() < 1e-5, "{s:?}");
+        let s = follow(&l, &suffix, &mut k, Vec2::new(1.8, 0.0), 1.0);
+        assert!((s.point - Vec2::new(2.0, 0.8)).length() < 1e-5 && (s.rest - 1.2).abs() < 1e-5, "{s:?}");
+        let s = follow(&l, &suffix, &mut k, Vec2::new(2.0, 1.5), 1.0);
+        assert_eq!(s, Subgoal { point: Vec2::new(2.0, 2.0), rest: 0.0 });
+    }
+}
