@@ -54,7 +54,7 @@ pub fn check(name: &str, setup: &EnvSetup) -> Result<Vec<String>, ControllerErro
     if let Some((model, contract)) = rl_spec(name) {
         let runner = PolicyRunner::load(Path::new(&model), contract.as_deref().map(Path::new))?;
         runner.check_lidar(&setup.robot.lidar)?;
-        let warnings = match &runner.contract().envelope {
+        let mut warnings: Vec<String> = match &runner.contract().envelope {
             Some(e) => e
                 .outside(&setup.robot)
                 .into_iter()
@@ -62,6 +62,13 @@ pub fn check(name: &str, setup: &EnvSetup) -> Result<Vec<String>, ControllerErro
                 .collect(),
             None => Vec::new(),
         };
+        // Plans are given only in rooms known in advance (as DWA gets the map).
+        if runner.contract().plan.is_some() && setup.scenario.fixed_world().is_none() {
+            warnings.push(format!(
+                "{name} was trained to follow a plan, but {} has no room known in advance to plan in: it steers to the goal",
+                setup.scenario.spec().name
+            ));
+        }
         return Ok(warnings);
     }
     for_setup(name, setup).map(|_| Vec::new())

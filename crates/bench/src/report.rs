@@ -68,7 +68,7 @@ pub fn write_html(dir: &Path, suites: &[SuiteResult]) -> Result<std::path::PathB
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>rlnav bench: {}</title>\
          <style>{STYLE}</style></head><body>\n<h1>rlnav bench: {}</h1>\n<p>Rates with their 95% Wilson \
          interval. SPL: success weighted by the length of the shortest path that keeps the robot's \
-         clearance. |ang. acc.|: mean absolute angular acceleration (lower is smoother).</p>\n",
+         clearance. ang. acc.: mean absolute angular acceleration (lower is smoother).</p>\n",
         esc(&title),
         esc(&title)
     );
@@ -86,14 +86,14 @@ pub fn write_html(dir: &Path, suites: &[SuiteResult]) -> Result<std::path::PathB
         }
         h += "<h3>Over the whole suite</h3>\n<table><tr><th>controller</th><th>episodes</th><th>success</th>\
               <th>collision</th><th>timeout</th><th>SPL</th><th>task time (s)</th><th>min lidar range (m)</th>\
-              <th>|ang. acc.| (rad/s²)</th></tr>\n";
+              <th>ang. acc. (rad/s²)</th></tr>\n";
         for (c, s) in r.pooled() {
             let cells = [esc(&c), s.episodes.to_string()].into_iter();
             h += &row(cells.chain(figures(&s)).chain([num(s.mean_angular_acceleration, 2)]));
         }
         h += "</table>\n<h3>Per scene</h3>\n<table><tr><th>scenario</th><th>controller</th><th>success</th>\
               <th>collision</th><th>timeout</th><th>SPL</th><th>task time (s)</th><th>min lidar range (m)</th>\
-              <th>avg speed (m/s)</th><th>|ang. acc.| (rad/s²)</th><th>BARN score</th></tr>\n";
+              <th>avg speed (m/s)</th><th>ang. acc. (rad/s²)</th><th>BARN score</th></tr>\n";
         for c in &r.cells {
             let s = &c.summary;
             let barn = c.barn_score.map_or("–".into(), |b| format!("{b:.3}"));

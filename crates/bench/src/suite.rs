@@ -307,7 +307,7 @@ impl SuiteResult {
     pub fn markdown(&self) -> String {
         let barn = self.cells.iter().any(|c| c.barn_score.is_some());
         let mut s = format!(
-            "# {} with {} (seed {})\n\nRates with their 95% Wilson interval; SPL: success weighted by the A* path length; |ang. acc.|: mean absolute angular acceleration (smoothness, lower is smoother).\n\n| scenario | controller | success | collision | timeout | SPL | task time (s) | min lidar range (m) | avg linear velocity (m/s) | |ang. acc.| (rad/s²) | distance to target (m) |{}\n|---|---|---|---|---|---|---|---|---|---|---|{}\n",
+            "# {} with {} (seed {})\n\nRates with their 95% Wilson interval; SPL: success weighted by the shortest path's length (Theta* past the static world); ang. acc.: mean absolute angular acceleration (smoothness, lower is smoother).\n\n| scenario | controller | success | collision | timeout | SPL | task time (s) | min lidar range (m) | avg linear velocity (m/s) | ang. acc. (rad/s²) | distance to target (m) |{}\n|---|---|---|---|---|---|---|---|---|---|---|{}\n",
             self.suite,
             self.robot,
             self.seed,
@@ -347,7 +347,7 @@ impl SuiteResult {
             s += &format!("\nWarning: {w}.\n");
         }
         // Pooled over the suite: what a suite-level claim ("98% on static rooms") rests on.
-        s += "\nOver the whole suite:\n\n| controller | episodes | success | collision | timeout | SPL | task time (s) | min lidar range (m) | |ang. acc.| (rad/s²) |\n|---|---|---|---|---|---|---|---|---|\n";
+        s += "\nOver the whole suite:\n\n| controller | episodes | success | collision | timeout | SPL | task time (s) | min lidar range (m) | ang. acc. (rad/s²) |\n|---|---|---|---|---|---|---|---|---|\n";
         for (controller, r) in self.pooled() {
             let num = |x: f32| if x.is_finite() { format!("{x:.2}") } else { "–".into() };
             s += &format!(

@@ -2,7 +2,7 @@
 //! (inscribed: the robot's centre here means contact) and 254 (lethal: an obstacle).
 //!
 //! - static layer: the scenario's world or map rasterised once (a cell is lethal when an
-//!   obstacle covers its centre or comes within half a cell of it);
+//!   obstacle comes within half the cell's diagonal of its centre, so that it touches the cell);
 //! - obstacle layer: lidar hits marked lethal; every beam clears the cells it passes through
 //!   (up to the hit, or to the raytrace range when there is none), so moving obstacles leave no
 //!   ghosts;

@@ -265,7 +265,7 @@ impl Validate for PolicyContract {
         check_range("control_period", self.control_period, 1e-3, 10.0)?;
         check_positive("goal_tolerance", self.goal_tolerance)?;
         if let Some(p) = &self.plan {
-            check_range("plan.lookahead", p.lookahead, 0.1, 100.0)?;
+            p.validate().map_err(|e| e.under("plan"))?;
         }
         if self.io.obs.is_empty() || self.io.mu.is_empty() {
             return Err(Invalid::new("io", "non-empty `obs` and `mu` names"));

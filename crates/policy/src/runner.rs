@@ -91,7 +91,9 @@ pub struct PolicyRunner {
     adapter: Option<ScanAdapter>,
     last: Twist,
     fault: Option<String>,
-    /// The plan segment the robot's projection lay on last (policies trained on plans).
+    /// The plan being followed and the segment the robot's projection lay on last (policies
+    /// trained on plans); a new plan starts from its beginning.
+    nav_plan: Option<std::sync::Arc<[rlnav_sim::Vec2]>>,
     plan_progress: usize,
     name: String,
 }
@@ -238,6 +240,7 @@ impl PolicyRunner {
             adapter: None,
             last: Twist::default(),
             fault: None,
+            nav_plan: None,
             plan_progress: 0,
             name,
             contract,
@@ -277,6 +280,7 @@ impl PolicyRunner {
         }
         self.observer.reset();
         self.last = Twist::default();
+        self.nav_plan = None;
         self.plan_progress = 0;
     }
 
@@ -322,6 +326,10 @@ impl PolicyRunner {
         // A policy trained on plans steers to the point a lookahead ahead on the robot's plan.
         let target = match &self.contract.plan {
             Some(p) if !o.plan.is_empty() => {
+                if !self.nav_plan.as_ref().is_some_and(|q| std::sync::Arc::ptr_eq(q, &o.plan)) {
+                    self.nav_plan = Some(o.plan.clone());
+                    self.plan_progress = 0;
+                }
                 rlnav_sim::plan::plan_subgoal(&o.plan, &mut self.plan_progress, o.pose.position(), p.lookahead)
             }
             _ => o.goal,

@@ -92,7 +92,8 @@ pub struct PeopleGenSpec {
     pub speed: [f32; 2],
     /// Body radius range (m, default [0.2, 0.3]).
     pub radius: [f32; 2],
-    /// Length of the crossing walk (m, default [2, 5]).
+    /// Length of the crossing walk (m, default [2, 5]; the other patterns walk along the
+    /// start–goal line, from beyond the goal to near the start).
     pub travel: [f32; 2],
     /// How each person walks relative to the robot's straight start–goal line, drawn uniformly
     /// per person (default `[cross]`).

@@ -48,7 +48,8 @@ pub fn follow(path: &[Vec2], suffix: &[f32], progress: &mut usize, p: Vec2, look
     for k in best..=last {
         let to = path[k + 1];
         let step = (to - from).length();
-        if step >= left {
+        // (A zero-length segment, a repeated point as Nav2 plans have, is stepped over.)
+        if step >= left && step > 0.0 {
             let point = from + (to - from) * (left / step);
             let rest = suffix.get(k + 1).map_or(0.0, |r| r + (to - point).length());
             return Subgoal { point, rest };
@@ -66,6 +67,11 @@ pub fn follow(path: &[Vec2], suffix: &[f32], progress: &mut usize, p: Vec2, look
 /// are in one frame; `path` has at least one point.
 pub fn plan_subgoal(path: &[Vec2], progress: &mut usize, p: Vec2, lookahead: f32) -> Vec2 {
     follow(path, &[], progress, p, lookahead).point
+}
+
+/// A path's length.
+pub fn path_length(path: &[Vec2]) -> f32 {
+    path.windows(2).map(|w| (w[1] - w[0]).length()).sum()
 }
 
 /// Path length from each point to the end.
@@ -93,5 +99,10 @@ mod tests {
         assert!((s.point - Vec2::new(2.0, 0.8)).length() < 1e-5 && (s.rest - 1.2).abs() < 1e-5, "{s:?}");
         let s = follow(&l, &suffix, &mut k, Vec2::new(2.0, 1.5), 1.0);
         assert_eq!(s, Subgoal { point: Vec2::new(2.0, 2.0), rest: 0.0 });
+        // Repeated points (Nav2 plans have them) and a lookahead ending on one: no NaN.
+        let d = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(2.0, 0.0)];
+        let p = plan_subgoal(&d, &mut 0, Vec2::new(0.0, 0.0), 1.0);
+        assert_eq!(p, Vec2::new(1.0, 0.0));
+        assert_eq!(path_length(&d), 2.0);
     }
 }

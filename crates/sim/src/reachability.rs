@@ -133,8 +133,7 @@ impl ReachabilityGrid {
     /// sight as parent) over the free cells, so that the length is close to the any-angle
     /// shortest path rather than a grid staircase (what SPL compares a driven path with).
     pub fn shortest_path_length(&self, a: Vec2, b: Vec2) -> Option<f32> {
-        let path = self.shortest_path(a, b)?;
-        Some(path.windows(2).map(|w| (w[1] - w[0]).length()).sum())
+        self.shortest_path(a, b).map(|p| crate::plan::path_length(&p))
     }
 
     /// The shortest path of [`Self::shortest_path_length`]: its corners, from `a` to `b`.

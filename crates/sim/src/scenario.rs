@@ -235,7 +235,8 @@ pub struct MoverGenSpec {
     pub speed: [f32; 2],
     /// Box side range (m, default [0.3, 0.5]).
     pub size: [f32; 2],
-    /// Length of the back-and-forth path (m, default [2, 4]), centred on the start–goal line.
+    /// Length of the back-and-forth path (m, default [2, 4]), centred on the start–goal line
+    /// (for `cross`; the other patterns run along the line, from 0.2 to 0.95 of the way).
     pub travel: [f32; 2],
     /// How each mover moves relative to the start–goal line, drawn uniformly per mover
     /// (default `[cross]`, the article's task).
@@ -720,6 +721,8 @@ impl Scenario {
                 (_, Some((start, goal))) => {
                     let ok = world.is_clear(start.position(), self.start_clearance)
                         && world.is_clear(goal, self.clearance)
+                        && self.placeable(&world, start.position())
+                        && self.placeable(&world, goal)
                         && (!self.spec.require_path || grid.connected(start.position(), goal));
                     if ok { Ok((start, goal)) } else { Err("generated obstacles cut the start from the goal".into()) }
                 }

@@ -170,12 +170,23 @@ pub struct TaskConfig {
     pub plan: Option<PlanConfig>,
 }
 
+/// Extra clearance (m) a global plan keeps from obstacles where the room allows, as Nav2's
+/// planners keep off them through the costmap's inflation cost: a path that hugs a door jamb or
+/// a wall's end at the robot's bare clearance leaves a policy no room to turn there.
+pub const PLAN_BERTH: f32 = 0.15;
+
 /// How a task follows its global plan.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlanConfig {
     /// Distance along the plan to the point the policy steers to (m).
     pub lookahead: f32,
+}
+
+impl Validate for PlanConfig {
+    fn validate(&self) -> Result<(), Invalid> {
+        check_range("lookahead", self.lookahead, 0.1, 100.0)
+    }
 }
 
 impl Default for TaskConfig {
@@ -212,7 +223,7 @@ impl Validate for TaskConfig {
         check_positive("goal_tolerance", self.goal_tolerance)?;
         check_range("collision_range", self.collision_range, 0.0, 10.0)?;
         if let Some(p) = &self.plan {
-            check_range("plan.lookahead", p.lookahead, 0.1, 100.0)?;
+            p.validate().map_err(|e| e.under("plan"))?;
         }
         check_interval("action.linear", self.action.linear, -100.0, 100.0)?;
         check_interval("action.angular", self.action.angular, -100.0, 100.0)?;
@@ -625,7 +636,7 @@ impl NavEnv {
         self.angular_acceleration_sum = 0.0;
         // A goal that moves has no fixed plan; it is steered to directly.
         let plan = match &self.setup.task.plan {
-            Some(_) if ep.goal_velocity == Vec2::ZERO => ep.reach.shortest_path(self.start, ep.goal),
+            Some(_) if ep.goal_velocity == Vec2::ZERO => self.global_plan(&self.world, &ep.reach, ep.goal),
             _ => None,
         };
         // Without a plan nothing is allocated (a fixed world's reset allocates nothing).
@@ -880,9 +891,19 @@ impl NavEnv {
         }
     }
 
+    /// The global plan from this episode's start to `goal`, as a planner with the room's map
+    /// gives a Nav2 controller: the shortest path that keeps [`PLAN_BERTH`] more than the
+    /// robot's clearance from obstacles, or, where the room is too tight for that at the start,
+    /// the goal or on the way, the shortest path at the bare clearance.
+    fn global_plan(&self, world: &World, reach: &ReachabilityGrid, goal: Vec2) -> Option<Vec<Vec2>> {
+        let s = &self.setup.scenario;
+        let wide = ReachabilityGrid::new(world, s.area(), s.clearance() + PLAN_BERTH, reach.resolution());
+        wide.shortest_path(self.start, goal).or_else(|| reach.shortest_path(self.start, goal))
+    }
+
     /// The shortest path from this episode's start to its (first) goal past the static world,
     /// keeping the robot's clearance (m; `None` if they are not connected at that clearance).
-    /// A Dijkstra search over the world's free cells: evaluation uses it, training does not.
+    /// Theta* over the world's free cells (it allocates; stepping never calls it).
     pub fn shortest_path_length(&self) -> Option<f32> {
         self.reach.as_ref()?.shortest_path_length(self.start, self.first_goal)
     }
@@ -961,11 +982,13 @@ impl NavEnv {
     /// Measures the episode's shortest path (for SPL) first; with a static world known in
     /// advance, controllers are given it as their plan ([`RobotObservation::plan`]).
     pub fn run_to_end(&mut self, controller: &mut dyn Controller, mut on_step: impl FnMut(&Self)) -> EpisodeStats {
-        let path = match self.plan.is_empty() {
-            true => self.reach.as_ref().and_then(|r| r.shortest_path(self.start, self.first_goal)),
-            false => Some(self.plan.to_vec()),
+        let shortest = self.reach.as_ref().and_then(|r| r.shortest_path(self.start, self.first_goal));
+        let optimal = shortest.as_deref().map_or(f32::NAN, crate::plan::path_length);
+        let path = match (self.plan.is_empty(), &self.reach) {
+            (true, Some(reach)) => self.global_plan(&self.world, reach, self.first_goal),
+            (true, None) => None,
+            (false, _) => Some(self.plan.to_vec()),
         };
-        let optimal = path.as_ref().map_or(f32::NAN, |p| p.windows(2).map(|w| (w[1] - w[0]).length()).sum());
         self.prior_plan = match path {
             Some(p) if self.setup.scenario.fixed_world().is_some() && self.goal_velocity == Vec2::ZERO => Arc::from(p),
             _ => self.no_plan.clone(),

@@ -3,7 +3,8 @@
 //!
 //! Every environment owns its random stream, seeded from the run seed and its index, so the
 //! results are the same whatever the thread count. Stepping allocates nothing (only drawing a
-//! procedurally generated world at reset does).
+//! procedurally generated world at reset does, and planning a path at reset for a task with a
+//! `plan`).
 
 use crate::task::{EnvSetup, EpisodeStats, NavEnv, SimError};
 use rand::{RngExt, SeedableRng};

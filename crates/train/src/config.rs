@@ -265,6 +265,12 @@ impl Validate for RunConfig {
                 return Err(Invalid::new(k, format!("an integer in [{lo}, {hi}], got {v}")));
             }
         }
+        if !self.robots.is_empty() && !self.robots.contains(&self.robot) {
+            return Err(Invalid::new(
+                "robot",
+                format!("one of `robots` ({}): the contract's scan is this robot's", self.robots.join(", ")),
+            ));
+        }
         let batch = t.num_actors * t.horizon_length;
         if batch % t.minibatch_size != 0 {
             return Err(Invalid::new(

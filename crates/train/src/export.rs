@@ -35,20 +35,21 @@ pub fn run_contract(cfg: &RunConfig, robot: &RobotSpec, lstm_units: usize) -> Po
         goal_tolerance: cfg.task.goal_tolerance,
         io: if lstm_units > 0 { lstm_io(lstm_units) } else { GraphIo::default() },
         plan: cfg.task.plan.clone(),
-        envelope: Some(RobotEnvelope::of(
-            &trained_robots(cfg, robot),
-            [cfg.task.randomization.wheel_separation_jitter, cfg.task.randomization.speed_limit_jitter],
-        )),
+        envelope: trained_robots(cfg, robot).map(|robots| {
+            let r = &cfg.task.randomization;
+            RobotEnvelope::of(&robots, [r.wheel_separation_jitter, r.speed_limit_jitter])
+        }),
     }
 }
 
-/// The robots a run trains on (`robots`, or `robot` alone), `robot` given as loaded.
-fn trained_robots(cfg: &RunConfig, robot: &RobotSpec) -> Vec<RobotSpec> {
+/// The robots a run trains on (`robots`, or `robot` alone), `robot` given as loaded; `None`
+/// when one of them no longer loads (a robot file moved since training): no envelope rather
+/// than a wrong one.
+fn trained_robots(cfg: &RunConfig, robot: &RobotSpec) -> Option<Vec<RobotSpec>> {
     if cfg.robots.is_empty() {
-        return vec![robot.clone()];
+        return Some(vec![robot.clone()]);
     }
-    // They loaded when training started; one that no longer loads is left out of the envelope.
-    cfg.robots.iter().filter_map(|r| RobotSpec::load(r).ok()).collect()
+    cfg.robots.iter().map(|r| RobotSpec::load(r).ok()).collect()
 }
 
 /// The ONNX bytes of a run folder's checkpoint (`best` or `checkpoint`) and its contract.

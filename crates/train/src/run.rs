@@ -134,7 +134,7 @@ pub struct Summary {
     pub last_epoch_eval: Option<EvalSummary>,
     /// Scenario of the final evaluation.
     pub eval_scenario: String,
-    /// Best evaluation success rate seen (on the held-out scenarios when there are any).
+    /// Best success rate of the evaluation that selects checkpoints (`eval.select`).
     pub best_success_rate: f32,
     /// Epoch of the best evaluation.
     pub best_epoch: usize,
@@ -433,7 +433,7 @@ pub fn train(
     let stages = stages(cfg);
     let setups = stages.iter().map(|s| stage_setup(cfg, s)).collect::<Result<Vec<_>, _>>()?;
     let obs_dim = setups[0][0].obs_dim();
-    if let Some((s, _)) = setups.iter().flatten().zip(&stages).find(|(s, _)| s.obs_dim() != obs_dim) {
+    if let Some(s) = setups.iter().flatten().find(|s| s.obs_dim() != obs_dim) {
         return Err(TrainError::Config(ConfigError::Invalid {
             file: "<curriculum>".into(),
             key: "curriculum".into(),
