@@ -4,7 +4,7 @@
 
 use crate::evaluate::EvalSummary;
 use crate::plots::slug;
-use crate::suite::{SuiteResult, rate_ci};
+use crate::suite::{SuiteResult, first_seen, num, rate_ci};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -23,10 +23,6 @@ fn inline_svg(path: &Path) -> String {
         },
         Err(e) => format!("<p class=\"missing\">{}: {}</p>", esc(&path.display().to_string()), esc(&e.to_string())),
     }
-}
-
-fn num(x: f32, digits: usize) -> String {
-    if x.is_finite() { format!("{x:.digits$}") } else { "–".into() }
 }
 
 /// One table row.
@@ -101,13 +97,7 @@ pub fn write_html(dir: &Path, suites: &[SuiteResult]) -> Result<std::path::PathB
             h += &row([esc(&c.scenario), esc(&c.controller)].into_iter().chain(figures(s)).chain(rest));
         }
         h += "</table>\n";
-        let mut scenes: Vec<&str> = Vec::new();
-        for c in &r.cells {
-            if !scenes.contains(&c.scenario.as_str()) {
-                scenes.push(&c.scenario);
-            }
-        }
-        for scene in scenes {
+        for scene in first_seen(r.cells.iter().map(|c| c.scenario.as_str())) {
             let _ = writeln!(h, "<h3>{}</h3>\n<div class=\"row\">", esc(scene));
             let _ = writeln!(
                 h,

@@ -268,6 +268,22 @@ pub fn rate_ci(rate: f32, ci: [f32; 2]) -> String {
     format!("{:.0}% [{:.0}–{:.0}]", 100.0 * rate, 100.0 * ci[0], 100.0 * ci[1])
 }
 
+/// The distinct items, in the order they first come.
+pub(crate) fn first_seen<'a>(items: impl Iterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut out: Vec<&str> = Vec::new();
+    for i in items {
+        if !out.contains(&i) {
+            out.push(i);
+        }
+    }
+    out
+}
+
+/// A figure with `digits` decimals, `–` when there is none (NaN).
+pub(crate) fn num(x: f32, digits: usize) -> String {
+    if x.is_finite() { format!("{x:.digits$}") } else { "–".into() }
+}
+
 /// Mean and (population) standard deviation.
 fn mean_std(v: &[f32]) -> (f32, f32) {
     if v.is_empty() {
@@ -281,13 +297,7 @@ impl SuiteResult {
     /// Each controller's summary over every episode of the suite, in the order controllers
     /// were given.
     pub fn pooled(&self) -> Vec<(String, EvalSummary)> {
-        let mut order: Vec<&str> = Vec::new();
-        for c in &self.cells {
-            if !order.contains(&c.controller.as_str()) {
-                order.push(&c.controller);
-            }
-        }
-        order
+        first_seen(self.cells.iter().map(|c| c.controller.as_str()))
             .into_iter()
             .map(|name| {
                 let eps: Vec<EpisodeStats> = self
@@ -334,7 +344,7 @@ impl SuiteResult {
                 rate_ci(r.success_rate, r.success_ci95),
                 rate_ci(r.collision_rate, r.collision_ci95),
                 100.0 * r.timeout_rate,
-                if r.spl.is_finite() { format!("{:.2}", r.spl) } else { "–".into() },
+                num(r.spl, 2),
                 pick(&|e| e.time, true),
                 pick(&|e| e.min_range, false),
                 pick(&|e| e.mean_speed, false),
@@ -349,17 +359,16 @@ impl SuiteResult {
         // Pooled over the suite: what a suite-level claim ("98% on static rooms") rests on.
         s += "\nOver the whole suite:\n\n| controller | episodes | success | collision | timeout | SPL | task time (s) | min lidar range (m) | ang. acc. (rad/s²) |\n|---|---|---|---|---|---|---|---|---|\n";
         for (controller, r) in self.pooled() {
-            let num = |x: f32| if x.is_finite() { format!("{x:.2}") } else { "–".into() };
             s += &format!(
                 "| {controller} | {} | {} | {} | {:.1}% | {} | {} | {} | {} |\n",
                 r.episodes,
                 rate_ci(r.success_rate, r.success_ci95),
                 rate_ci(r.collision_rate, r.collision_ci95),
                 100.0 * r.timeout_rate,
-                num(r.spl),
-                num(r.mean_task_time),
-                num(r.mean_min_range),
-                num(r.mean_angular_acceleration),
+                num(r.spl, 2),
+                num(r.mean_task_time, 2),
+                num(r.mean_min_range, 2),
+                num(r.mean_angular_acceleration, 2),
             );
         }
         if barn {

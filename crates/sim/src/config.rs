@@ -97,6 +97,15 @@ pub fn check_positive(key: &str, value: f32) -> Result<(), Invalid> {
     }
 }
 
+/// Checks that a `[min, max]` count range is ordered and at most `max`.
+pub fn check_count(key: &str, count: [u32; 2], max: u32) -> Result<(), Invalid> {
+    if count[0] <= count[1] && count[1] <= max {
+        Ok(())
+    } else {
+        Err(Invalid::new(key, format!("[min, max] with min <= max <= {max}")))
+    }
+}
+
 /// Checks that `[lo, hi]` is an ordered, finite interval inside `[min, max]`.
 pub fn check_interval(key: &str, v: [f32; 2], min: f32, max: f32) -> Result<(), Invalid> {
     if v[0].is_finite() && v[1].is_finite() && v[0] <= v[1] && v[0] >= min && v[1] <= max {

@@ -115,16 +115,11 @@ impl Default for PeopleGenSpec {
 impl PeopleGenSpec {
     /// Checks the values.
     pub fn validate(&self) -> Result<(), Invalid> {
-        if self.count[0] > self.count[1] || self.count[1] > 100 {
-            return Err(Invalid::new("count", "[min, max] with min <= max <= 100"));
-        }
+        crate::config::check_count("count", self.count, 100)?;
         check_interval("speed", self.speed, 0.0, 5.0)?;
         check_interval("radius", self.radius, 0.05, 2.0)?;
         check_interval("travel", self.travel, 0.0, 1000.0)?;
-        if self.patterns.is_empty() {
-            return Err(Invalid::new("patterns", "at least one of cross, head_on, same_way, group"));
-        }
-        Ok(())
+        crate::scenario::check_patterns("patterns", &self.patterns)
     }
 }
 

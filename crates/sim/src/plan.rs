@@ -5,6 +5,11 @@
 
 use crate::geometry::Vec2;
 
+/// Extra clearance (m) a global plan keeps from obstacles where the room allows, as Nav2's
+/// planners keep off them through the costmap's inflation cost: a path that hugs a door jamb or
+/// a wall's end at the robot's bare clearance leaves a policy no room to turn there.
+pub const PLAN_BERTH: f32 = 0.15;
+
 /// Where [`follow`] put the target: the point and the path length still to go from it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Subgoal {

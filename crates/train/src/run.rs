@@ -195,7 +195,6 @@ fn stages(cfg: &RunConfig) -> Vec<StageConfig> {
     }
 }
 
-/// Environments of the run's robot on `scenario` with `task`.
 /// The scenario set up for each of the run's robots (`robots`, or `robot` alone).
 fn env_setup(cfg: &RunConfig, scenario: &str, task: TaskConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
     let spec = ScenarioSpec::load(scenario)?;
@@ -437,7 +436,11 @@ pub fn train(
         return Err(TrainError::Config(ConfigError::Invalid {
             file: "<curriculum>".into(),
             key: "curriculum".into(),
-            expected: format!("stages with the same observation length ({obs_dim}), got {}", s.obs_dim()),
+            expected: format!(
+                "stages and robots with the same observation length ({obs_dim}), got {} ({})",
+                s.obs_dim(),
+                s.robot.name
+            ),
         }));
     }
     let eval = env_setup(cfg, &cfg.eval.scenario, cfg.task.clone())?;
