@@ -34,11 +34,13 @@ impl ReachabilityGrid {
         let inflation = radius + 0.5 * resolution;
         let centre =
             |ix: usize, iy: usize| area.min + Vec2::new((ix as f32 + 0.5) * resolution, (iy as f32 + 0.5) * resolution);
-        // Obstacle-major: only the cells near each obstacle are tested against it.
+        // Obstacle-major: only the cells near each obstacle (its bounding box: a wall's bounding
+        // circle would cover the whole room) are tested against it.
         for o in world.obstacles() {
-            let reach = o.bound_radius + inflation;
-            let lo = ((o.bound_center - Vec2::splat(reach) - area.min) / resolution).floor();
-            let hi = ((o.bound_center + Vec2::splat(reach) - area.min) / resolution).ceil();
+            let aabb = o.shape.compute_aabb(&o.pose);
+            let (bmin, bmax) = (Vec2::new(aabb.mins.x, aabb.mins.y), Vec2::new(aabb.maxs.x, aabb.maxs.y));
+            let lo = ((bmin - Vec2::splat(inflation) - area.min) / resolution).floor();
+            let hi = ((bmax + Vec2::splat(inflation) - area.min) / resolution).ceil();
             let (x0, x1) = (lo.x.max(0.0) as usize, (hi.x.max(0.0) as usize).min(width));
             let (y0, y1) = (lo.y.max(0.0) as usize, (hi.y.max(0.0) as usize).min(height));
             for iy in y0..y1 {
@@ -136,7 +138,66 @@ impl ReachabilityGrid {
         self.shortest_path(a, b).map(|p| crate::plan::path_length(&p))
     }
 
+    /// Whether cell `(x, y)` is inside the grid and free.
+    fn free(&self, x: i64, y: i64) -> bool {
+        x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height && {
+            self.labels[y as usize * self.width + x as usize] != 0
+        }
+    }
+
+    /// Whether the segment `p`–`q` crosses free cells only: every cell it touches, walked
+    /// cell by cell (Amanatides–Woo); where it passes exactly through a corner, both cells
+    /// beside the corner must be free too.
+    fn sight(&self, p: Vec2, q: Vec2) -> bool {
+        let (p, q) = ((p - self.origin) / self.resolution, (q - self.origin) / self.resolution);
+        let (mut x, mut y) = (p.x.floor() as i64, p.y.floor() as i64);
+        let (qx, qy) = (q.x.floor() as i64, q.y.floor() as i64);
+        if !self.free(x, y) {
+            return false;
+        }
+        let d = q - p;
+        let (sx, sy) = (if d.x > 0.0 { 1 } else { -1 }, if d.y > 0.0 { 1 } else { -1 });
+        let (tdx, tdy) = (1.0 / d.x.abs(), 1.0 / d.y.abs());
+        let mut tx = if d.x > 0.0 { (x as f32 + 1.0 - p.x) * tdx } else { (p.x - x as f32) * tdx };
+        let mut ty = if d.y > 0.0 { (y as f32 + 1.0 - p.y) * tdy } else { (p.y - y as f32) * tdy };
+        if d.x == 0.0 {
+            tx = f32::INFINITY;
+        }
+        if d.y == 0.0 {
+            ty = f32::INFINITY;
+        }
+        // Rounding can make the walk miss the last cell by one step: it is bounded instead.
+        for _ in 0..(qx - x).abs() + (qy - y).abs() {
+            if (x, y) == (qx, qy) {
+                break;
+            }
+            if tx < ty {
+                x += sx;
+                tx += tdx;
+            } else if ty < tx {
+                y += sy;
+                ty += tdy;
+            } else {
+                if !self.free(x + sx, y) || !self.free(x, y + sy) {
+                    return false;
+                }
+                x += sx;
+                y += sy;
+                tx += tdx;
+                ty += tdy;
+            }
+            if !self.free(x, y) {
+                return false;
+            }
+        }
+        true
+    }
+
     /// The shortest path of [`Self::shortest_path_length`]: its corners, from `a` to `b`.
+    ///
+    /// Lazy Theta* (Nash, Koenig and Tovey 2010): a node takes its parent's parent when it
+    /// is generated and the line of sight is checked once, when the node is expanded, rather
+    /// than for each of its eight neighbours (an episode's plan is made at every reset).
     pub fn shortest_path(&self, a: Vec2, b: Vec2) -> Option<Vec<Vec2>> {
         if !self.connected(a, b) {
             return None;
@@ -156,9 +217,16 @@ impl ReachabilityGrid {
                     + Vec2::new(((i % w) as f32 + 0.5) * self.resolution, ((i / w) as f32 + 0.5) * self.resolution)
             }
         };
-        let sight = |p: Vec2, q: Vec2| {
-            let n = ((q - p).length() / (0.5 * self.resolution)).ceil().max(1.0) as usize;
-            (1..n).all(|k| self.label(p + (q - p) * (k as f32 / n as f32)) != 0)
+        // The neighbours a node can move to on the grid (no diagonal squeezes past a corner).
+        let neighbours = |c: usize| {
+            let (x, y) = ((c % w) as i64, (c / w) as i64);
+            [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)].into_iter().filter_map(
+                move |(dx, dy)| {
+                    let (nx, ny) = (x + dx, y + dy);
+                    let ok = self.free(nx, ny) && (dx == 0 || dy == 0 || (self.free(nx, y) && self.free(x, ny)));
+                    ok.then_some(ny as usize * w + nx as usize)
+                },
+            )
         };
         let mut g = vec![f32::INFINITY; self.labels.len()];
         let mut parent = vec![usize::MAX; self.labels.len()];
@@ -170,6 +238,20 @@ impl ReachabilityGrid {
         parent[src] = src;
         open.push((key((b - a).length()), src));
         while let Some((_, c)) = open.pop() {
+            if std::mem::replace(&mut closed[c], true) {
+                continue;
+            }
+            // The parent was assumed in sight: if it is not, take the best expanded neighbour.
+            let pc = parent[c];
+            if pc != c && !self.sight(point(pc), point(c)) {
+                let (best, cost) = neighbours(c)
+                    .filter(|n| closed[*n] && *n != c)
+                    .map(|n| (n, g[n] + (point(c) - point(n)).length()))
+                    .min_by(|x, y| x.1.total_cmp(&y.1))
+                    .expect("a node is generated by an expanded neighbour");
+                parent[c] = best;
+                g[c] = cost;
+            }
             if c == dst {
                 let mut path = vec![b];
                 let mut k = dst;
@@ -180,29 +262,12 @@ impl ReachabilityGrid {
                 path.reverse();
                 return Some(path);
             }
-            if std::mem::replace(&mut closed[c], true) {
-                continue;
-            }
-            let (x, y) = ((c % w) as isize, (c / w) as isize);
-            for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx >= w as isize || ny >= self.height as isize {
+            let from = parent[c];
+            for n in neighbours(c) {
+                if closed[n] {
                     continue;
                 }
-                let n = ny as usize * w + nx as usize;
-                if self.labels[n] == 0 || closed[n] {
-                    continue;
-                }
-                if dx != 0
-                    && dy != 0
-                    && (self.labels[y as usize * w + nx as usize] == 0
-                        || self.labels[ny as usize * w + x as usize] == 0)
-                {
-                    continue;
-                }
-                let pc = parent[c];
-                let (from, via) = if sight(point(pc), point(n)) { (pc, g[pc]) } else { (c, g[c]) };
-                let cost = via + (point(n) - point(from)).length();
+                let cost = g[from] + (point(n) - point(from)).length();
                 if cost < g[n] {
                     g[n] = cost;
                     parent[n] = from;
@@ -274,5 +339,51 @@ mod tests {
         let w = walls(4.0, vec![ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 2.0] }]);
         let g = ReachabilityGrid::new(&w, area, 0.2, 0.05);
         assert_eq!(g.shortest_path_length(a, b), None);
+    }
+
+    /// On random cluttered rooms every plan is made of segments in sight of each other (so it
+    /// keeps the clearance all along), starts and ends at the given points, and exists exactly
+    /// when the two are connected.
+    #[test]
+    fn plans_in_clutter_keep_to_free_cells() {
+        use rand::{RngExt, SeedableRng};
+        let area = Rect { min: Vec2::splat(-3.0), max: Vec2::splat(3.0) };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+        let (mut found, mut none) = (0, 0);
+        for k in 0..40 {
+            let mut extra: Vec<ObstacleSpec> = (0..12)
+                .map(|_| ObstacleSpec::Circle {
+                    center: [rng.random_range(-2.8..2.8), rng.random_range(-2.8..2.8)],
+                    radius: rng.random_range(0.1..0.6),
+                })
+                .collect();
+            if k % 4 == 0 {
+                extra.push(ObstacleSpec::Wall { from: [0.0, -3.0], to: [0.0, 3.0] });
+            }
+            let g = ReachabilityGrid::new(&walls(6.0, extra), area, 0.15, 0.05);
+            let pick = |rng: &mut rand_pcg::Pcg64Mcg| loop {
+                let p = Vec2::new(rng.random_range(-2.8..2.8), rng.random_range(-2.8..2.8));
+                if g.label(p) != 0 {
+                    return p;
+                }
+            };
+            let (a, b) = (pick(&mut rng), pick(&mut rng));
+            match g.shortest_path(a, b) {
+                Some(path) => {
+                    found += 1;
+                    assert!(g.connected(a, b));
+                    assert_eq!((path[0], *path.last().unwrap()), (a, b));
+                    for s in path.windows(2) {
+                        assert!(g.sight(s[0], s[1]), "segment {:?} -> {:?} leaves the free cells", s[0], s[1]);
+                    }
+                    assert!(crate::plan::path_length(&path) >= (b - a).length() - 1e-4);
+                }
+                None => {
+                    none += 1;
+                    assert!(!g.connected(a, b));
+                }
+            }
+        }
+        assert!(found > 20 && none > 0, "both cases drawn: {found} found, {none} not connected");
     }
 }
