@@ -32,6 +32,20 @@ pub enum LrSchedule {
     Linear,
 }
 
+/// Which code computes the PPO update.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Learner {
+    /// The hand-written CPU learner for feed-forward networks, burn for LSTMs and for a GPU
+    /// chosen with `RLNAV_DEVICE`.
+    #[default]
+    Auto,
+    /// The hand-written CPU learner (`crate::fast`; feed-forward networks only).
+    Fast,
+    /// burn's autodiff and Adam (any network, any device).
+    Burn,
+}
+
 /// PPO hyper-parameters (rl_games names).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -76,8 +90,10 @@ pub struct PpoConfig {
     pub seq_len: usize,
     /// Epochs (rollout + update) to run.
     pub max_epochs: usize,
-    /// Simulator worker threads (0: one per core).
+    /// Simulator and learner worker threads (0: one per core).
     pub threads: usize,
+    /// Which code computes the update: `auto` (default), `fast` or `burn`.
+    pub learner: Learner,
 }
 
 impl Default for PpoConfig {
@@ -104,6 +120,18 @@ impl Default for PpoConfig {
             seq_len: 8,
             max_epochs: 200,
             threads: 0,
+            learner: Learner::Auto,
+        }
+    }
+}
+
+impl PpoConfig {
+    /// Whether the hand-written learner trains `network`.
+    pub fn uses_fast_learner(&self, network: &NetworkConfig) -> bool {
+        match self.learner {
+            Learner::Burn => false,
+            Learner::Fast => !network.is_recurrent(),
+            Learner::Auto => !network.is_recurrent() && std::env::var_os("RLNAV_DEVICE").is_none(),
         }
     }
 }
@@ -276,6 +304,12 @@ impl Validate for RunConfig {
             return Err(Invalid::new(
                 "train.minibatch_size",
                 format!("a divisor of num_actors * horizon_length = {batch}, got {}", t.minibatch_size),
+            ));
+        }
+        if self.network.is_recurrent() && t.learner == Learner::Fast {
+            return Err(Invalid::new(
+                "train.learner",
+                "auto or burn for an LSTM network (the hand-written learner is feed-forward only)",
             ));
         }
         if self.network.is_recurrent() {

@@ -4,6 +4,7 @@
 pub mod config;
 pub mod eval;
 pub mod export;
+pub mod fast;
 pub mod gae;
 pub mod plots;
 pub mod ppo;

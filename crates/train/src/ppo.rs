@@ -5,6 +5,7 @@
 //! normalisation, bootstrapped time-outs, and truncated BPTT for LSTM policies.
 
 use crate::config::{LrSchedule, PpoConfig};
+use crate::fast::{AdamState, Batch, FastMlp, LossConfig};
 use crate::gae::compute_gae;
 use crate::rollout::RolloutBuffer;
 use burn::module::{ModuleVisitor, Param, ParamId};
@@ -65,6 +66,9 @@ pub struct Ppo {
     /// Per-environment recurrent state (cell, hidden), `[env][units]`.
     state: Option<RecurrentState>,
     act_dim: usize,
+    /// The hand-written learner (feed-forward networks on the CPU); `None` when burn learns.
+    /// While it exists its parameters are the network's, copied into `model` after each update.
+    fast: Option<FastMlp>,
 }
 
 /// Gradient-norm clipping over all parameters together (burn's own clipping is per tensor).
@@ -105,6 +109,57 @@ fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
     t.into_data().try_to_vec::<f32>().expect("float tensor")
 }
 
+/// A minibatch's targets as tensors on the autodiff device.
+pub(crate) struct BurnBatch {
+    pub actions: Tensor<2>,
+    pub old_log_probs: Tensor<1>,
+    pub advantages: Tensor<1>,
+    pub returns: Tensor<1>,
+    pub old_values: Tensor<1>,
+}
+
+/// The PPO loss and its parts, as burn tensors.
+pub(crate) struct BurnLoss {
+    pub total: Tensor<1>,
+    pub policy: Tensor<1>,
+    pub value: Tensor<1>,
+    pub entropy: Tensor<1>,
+    pub ratio: Tensor<1>,
+}
+
+/// The PPO loss of means `mu`, values `v` and `log_std` on `batch`: clipped surrogate, (clipped)
+/// value loss, entropy bonus, bounds loss. The hand-written learner computes the same.
+pub(crate) fn burn_loss(
+    mu: Tensor<2>,
+    v: Tensor<1>,
+    log_std: Tensor<1>,
+    batch: BurnBatch,
+    cfg: &LossConfig,
+) -> BurnLoss {
+    let BurnBatch { actions, old_log_probs, advantages: adv, returns: ret, old_values: old_v } = batch;
+    let log_std2 = log_std.clone().unsqueeze::<2>();
+    let z = (actions - mu.clone()) / log_std2.clone().exp();
+    let logp: Tensor<1> = (z.powf_scalar(2.0) * -0.5 - log_std2 - HALF_LN_2PI).sum_dim(1).squeeze_dim(1);
+    let ratio = (logp - old_log_probs).exp();
+    let e = cfg.e_clip;
+    let surr = (ratio.clone() * adv.clone()).min_pair(ratio.clone().clamp(1.0 - e, 1.0 + e) * adv);
+    let policy = surr.mean().neg();
+    let value = if cfg.clip_value {
+        let clipped = old_v.clone() + (v.clone() - old_v).clamp(-e, e);
+        (v - ret.clone()).powf_scalar(2.0).max_pair((clipped - ret).powf_scalar(2.0)).mean()
+    } else {
+        (v - ret).powf_scalar(2.0).mean()
+    };
+    let entropy = (log_std + 0.5 + HALF_LN_2PI).sum();
+    let bounds = ((mu.clone() - SOFT_BOUND).clamp_min(0.0).powf_scalar(2.0)
+        + (mu + SOFT_BOUND).clamp_max(0.0).powf_scalar(2.0))
+    .sum_dim(1)
+    .mean();
+    let total = policy.clone() + value.clone() * (0.5 * cfg.critic_coef) - entropy.clone() * cfg.entropy_coef
+        + bounds * cfg.bounds_loss_coef;
+    BurnLoss { total, policy, value, entropy, ratio }
+}
+
 impl Ppo {
     /// A new learner for observations of `obs_dim` and `act_dim` actions, on `plain` (with
     /// gradients on `plain.autodiff()`).
@@ -119,6 +174,7 @@ impl Ppo {
         let device = plain.clone().autodiff();
         let model = ActorCritic::seeded(network, obs_dim, act_dim, &device, seed);
         let units = model.lstm_units();
+        let fast = if cfg.uses_fast_learner(network) { FastMlp::from_model(&model, cfg.threads) } else { None };
         Self {
             sim_s: 0.0,
             cfg: cfg.clone(),
@@ -133,6 +189,7 @@ impl Ppo {
             buffer: RolloutBuffer::new(cfg.num_actors, cfg.horizon_length, obs_dim, act_dim, units, cfg.seq_len),
             state: (units > 0).then(|| (vec![0.0; cfg.num_actors * units], vec![0.0; cfg.num_actors * units])),
             act_dim,
+            fast,
         }
     }
 
@@ -141,16 +198,34 @@ impl Ppo {
         self.model.as_ref().expect("the network is only absent during a step")
     }
 
-    /// Replaces network and optimiser state (resuming a run).
+    /// Replaces network and optimiser state (resuming a run). With the hand-written learner,
+    /// `optim` is unused and Adam starts afresh unless [`Self::restore_adam`] follows.
     pub fn restore(&mut self, model: ActorCritic, optim: ModuleOptimizer, lr: f32) {
+        if self.fast.is_some() {
+            self.fast = FastMlp::from_model(&model, self.cfg.threads);
+        }
         self.model = Some(model);
         self.optim = optim;
         self.lr = lr;
     }
 
-    /// The optimiser (for checkpoints).
+    /// The optimiser (for checkpoints) when burn learns.
     pub fn optimizer(&self) -> &ModuleOptimizer {
         &self.optim
+    }
+
+    /// Adam's state when the hand-written learner learns (for checkpoints); `None` when burn does.
+    pub fn fast_adam(&self) -> Option<&AdamState> {
+        self.fast.as_ref().map(|f| f.adam())
+    }
+
+    /// Restores the hand-written learner's Adam state (resuming); an error names what does not
+    /// match.
+    pub fn restore_adam(&mut self, adam: AdamState) -> Result<(), String> {
+        match &mut self.fast {
+            Some(f) => f.set_adam(adam),
+            None => Err("this run's learner is burn's, not the hand-written one".into()),
+        }
     }
 
     /// Current learning rate.
@@ -198,6 +273,11 @@ impl Ppo {
         obs: Vec<f32>,
         state: Option<RecurrentState>,
     ) -> (Vec<f32>, Vec<f32>, Option<RecurrentState>) {
+        if let Some(fast) = &self.fast {
+            let (mu, mut v) = fast.forward(&obs);
+            self.denorm_values(&mut v);
+            return (mu, v, state);
+        }
         let n = obs.len() / self.buffer.obs_dim;
         let x = tensor2(obs, n, self.buffer.obs_dim, &self.plain);
         let units = net.lstm_units();
@@ -384,80 +464,84 @@ impl Ppo {
                     let inv = 1.0 / (var.sqrt() + 1e-8);
                     adv.iter_mut().for_each(|x| *x = (*x - mean) * inv);
                 }
-                let dev = self.device.clone();
-                let (mu, v) = if units > 0 {
-                    let b = chunk.len();
-                    let cell: Vec<f32> = chunk
-                        .iter()
-                        .flat_map(|item| self.buffer.cells[item * units..(item + 1) * units].to_vec())
-                        .collect();
-                    let hidden: Vec<f32> = chunk
-                        .iter()
-                        .flat_map(|item| self.buffer.hiddens[item * units..(item + 1) * units].to_vec())
-                        .collect();
-                    let mut state =
-                        Some(LstmState::new(tensor2(cell, b, units, &dev), tensor2(hidden, b, units, &dev)));
-                    let (mut mus, mut vs) = (Vec::with_capacity(seq), Vec::with_capacity(seq));
-                    for s in 0..seq {
-                        let x = tensor2(obs[s * b * d..(s + 1) * b * d].to_vec(), b, d, &dev);
-                        let mask = tensor2(starts[s * b..(s + 1) * b].to_vec(), b, 1, &dev);
-                        let st = state.take().map(|st| LstmState::new(st.cell * mask.clone(), st.hidden * mask));
-                        let (mu, v, next) = self.model().step(x, st);
-                        state = next;
-                        mus.push(mu);
-                        vs.push(v);
-                    }
-                    (Tensor::cat(mus, 0), Tensor::cat(vs, 0))
-                } else {
-                    self.model().forward(tensor2(obs, rows, d, &dev))
+                let loss_cfg = LossConfig {
+                    e_clip: self.cfg.e_clip,
+                    clip_value: self.cfg.clip_value,
+                    critic_coef: self.cfg.critic_coef,
+                    entropy_coef: self.cfg.entropy_coef,
+                    bounds_loss_coef: self.cfg.bounds_loss_coef,
                 };
-                let act = tensor2(act, rows, a, &dev);
-                let old_logp = tensor1(old_logp, &dev);
-                let adv = tensor1(adv, &dev);
-                let ret = tensor1(ret, &dev);
-                let old_v = tensor1(old_v, &dev);
-                let log_std = self.model().log_std.val();
-                let log_std2 = log_std.clone().unsqueeze::<2>();
-                let z = (act - mu.clone()) / log_std2.clone().exp();
-                let logp: Tensor<1> =
-                    (z.powf_scalar(2.0) * -0.5 - log_std2.clone() - HALF_LN_2PI).sum_dim(1).squeeze_dim(1);
-                let ratio = (logp - old_logp).exp();
-                let e = self.cfg.e_clip;
-                let surr = (ratio.clone() * adv.clone()).min_pair(ratio.clone().clamp(1.0 - e, 1.0 + e) * adv);
-                let policy_loss = surr.mean().neg();
-                let value_loss = if self.cfg.clip_value {
-                    let clipped = old_v.clone() + (v.clone() - old_v).clamp(-e, e);
-                    (v - ret.clone()).powf_scalar(2.0).max_pair((clipped - ret).powf_scalar(2.0)).mean()
+                let (lr, max_norm) = (self.lr, self.cfg.grad_norm);
+                let (new_mu, new_ls, ratios, losses) = if let Some(fast) = self.fast.as_mut() {
+                    let ls = fast.log_std().to_vec();
+                    let batch = Batch {
+                        obs: &obs,
+                        actions: &act,
+                        old_log_probs: &old_logp,
+                        advantages: &adv,
+                        returns: &ret,
+                        old_values: &old_v,
+                    };
+                    let r = fast.step(&batch, &loss_cfg, lr, max_norm);
+                    (r.mu, ls, r.ratios, [r.policy_loss, r.value_loss, r.entropy])
                 } else {
-                    (v - ret).powf_scalar(2.0).mean()
-                };
-                let entropy = (log_std.clone() + 0.5 + HALF_LN_2PI).sum();
-                let bounds = ((mu.clone() - SOFT_BOUND).clamp_min(0.0).powf_scalar(2.0)
-                    + (mu.clone() + SOFT_BOUND).clamp_max(0.0).powf_scalar(2.0))
-                .sum_dim(1)
-                .mean();
-                let loss = policy_loss.clone() + value_loss.clone() * (0.5 * self.cfg.critic_coef)
-                    - entropy.clone() * self.cfg.entropy_coef
-                    + bounds * self.cfg.bounds_loss_coef;
-                let mut grads = GradientsParams::from_grads(loss.backward(), self.model());
-                let mut clip = GlobalNorm { grads: &mut grads, sum_sq: 0.0, scale: None };
-                self.model().visit(&mut clip);
-                let norm = clip.sum_sq.sqrt();
-                if norm > self.cfg.grad_norm {
-                    clip.scale = Some(self.cfg.grad_norm / norm);
+                    let dev = self.device.clone();
+                    let (mu, v) = if units > 0 {
+                        let b = chunk.len();
+                        let cell: Vec<f32> = chunk
+                            .iter()
+                            .flat_map(|item| self.buffer.cells[item * units..(item + 1) * units].to_vec())
+                            .collect();
+                        let hidden: Vec<f32> = chunk
+                            .iter()
+                            .flat_map(|item| self.buffer.hiddens[item * units..(item + 1) * units].to_vec())
+                            .collect();
+                        let mut state =
+                            Some(LstmState::new(tensor2(cell, b, units, &dev), tensor2(hidden, b, units, &dev)));
+                        let (mut mus, mut vs) = (Vec::with_capacity(seq), Vec::with_capacity(seq));
+                        for s in 0..seq {
+                            let x = tensor2(obs[s * b * d..(s + 1) * b * d].to_vec(), b, d, &dev);
+                            let mask = tensor2(starts[s * b..(s + 1) * b].to_vec(), b, 1, &dev);
+                            let st = state.take().map(|st| LstmState::new(st.cell * mask.clone(), st.hidden * mask));
+                            let (mu, v, next) = self.model().step(x, st);
+                            state = next;
+                            mus.push(mu);
+                            vs.push(v);
+                        }
+                        (Tensor::cat(mus, 0), Tensor::cat(vs, 0))
+                    } else {
+                        self.model().forward(tensor2(obs, rows, d, &dev))
+                    };
+                    let batch = BurnBatch {
+                        actions: tensor2(act, rows, a, &dev),
+                        old_log_probs: tensor1(old_logp, &dev),
+                        advantages: tensor1(adv, &dev),
+                        returns: tensor1(ret, &dev),
+                        old_values: tensor1(old_v, &dev),
+                    };
+                    let log_std = self.model().log_std.val();
+                    let l = burn_loss(mu.clone(), v, log_std.clone(), batch, &loss_cfg);
+                    let mut grads = GradientsParams::from_grads(l.total.backward(), self.model());
+                    let mut clip = GlobalNorm { grads: &mut grads, sum_sq: 0.0, scale: None };
                     self.model().visit(&mut clip);
-                }
-                // The optimiser takes the network by value; moving it out (rather than cloning)
-                // lets burn update the parameters in place.
-                let model = self.model.take().expect("the network is only absent during a step");
-                self.model = Some(self.optim.step(self.lr as f64, model, grads));
+                    let norm = clip.sum_sq.sqrt();
+                    if norm > max_norm {
+                        clip.scale = Some(max_norm / norm);
+                        self.model().visit(&mut clip);
+                    }
+                    // The optimiser takes the network by value; moving it out (rather than
+                    // cloning) lets burn update the parameters in place.
+                    let model = self.model.take().expect("the network is only absent during a step");
+                    self.model = Some(self.optim.step(lr as f64, model, grads));
+                    // Values read after the backward pass (burn's tape allows one backward,
+                    // and detach() would cut the graph the loss needs).
+                    let losses =
+                        [l.policy.into_scalar::<f32>(), l.value.into_scalar::<f32>(), l.entropy.into_scalar::<f32>()];
+                    (to_vec(mu), to_vec(log_std), to_vec(l.ratio), losses)
+                };
 
                 // KL(old || new) of the diagonal Gaussians (for the adaptive learning rate) and
-                // the clipped fraction, from values read after the backward pass (burn's tape
-                // allows one backward, and detach() would cut the graph the loss needs).
-                let new_mu = to_vec(mu.clone());
-                let new_ls = to_vec(log_std.clone());
-                let ratios = to_vec(ratio.clone());
+                // the clipped fraction, with the network as it was before this step.
                 let mut kl = 0.0f64;
                 for (m_new, m_old) in new_mu.chunks(a).zip(old_mu_v.chunks(a)) {
                     for j in 0..a {
@@ -469,6 +553,7 @@ impl Ppo {
                     }
                 }
                 let kl = (kl / rows as f64) as f32;
+                let e = self.cfg.e_clip;
                 let clipped = ratios.iter().filter(|r| (*r - 1.0).abs() > e).count() as f32 / rows as f32;
 
                 if self.cfg.lr_schedule == LrSchedule::Adaptive && kl.is_finite() {
@@ -478,13 +563,17 @@ impl Ppo {
                         self.lr = (self.lr * 1.5).min(1e-2);
                     }
                 }
-                stats.policy_loss += policy_loss.into_scalar::<f32>();
-                stats.value_loss += value_loss.into_scalar::<f32>();
-                stats.entropy += entropy.into_scalar::<f32>();
+                stats.policy_loss += losses[0];
+                stats.value_loss += losses[1];
+                stats.entropy += losses[2];
                 stats.kl += kl;
                 stats.clip_fraction += clipped;
                 count += 1.0;
             }
+        }
+        if let Some(fast) = &self.fast {
+            let model = self.model.take().expect("the network is only absent during a step");
+            self.model = Some(fast.write_into(model));
         }
         stats.policy_loss /= count;
         stats.value_loss /= count;

@@ -206,6 +206,9 @@ fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Vec<Arc<EnvSetup>
     env_setup(cfg, &stage.scenario, apply_task_overrides(&cfg.task, &stage.task, &stage.name)?)
 }
 
+/// The hand-written learner's Adam state in a checkpoint (burn's learner writes `optimizer.bpk`).
+const ADAM_FILE: &str = "adam.bin";
+
 /// Reads a checkpoint's trainer state.
 fn read_state(ck: &Path) -> Result<TrainerState, TrainError> {
     let path = ck.join("state.json");
@@ -225,7 +228,7 @@ fn restore_checkpoint(
 ) -> Result<(), TrainError> {
     let model = load_model(cfg, ck, st.obs_norm.dim(), &training_device().autodiff())?;
     let fresh = AdamConfig::new().with_epsilon(1e-8).init();
-    let optim = if optimizer {
+    let optim = if optimizer && ppo.fast_adam().is_none() {
         let path = ck.join("optimizer.bpk");
         fresh
             .load(&path)
@@ -234,6 +237,19 @@ fn restore_checkpoint(
         fresh
     };
     ppo.restore(model, optim, st.learning_rate);
+    if optimizer && ppo.fast_adam().is_some() {
+        let path = ck.join(ADAM_FILE);
+        let resume_err = |message: String| TrainError::Resume { path: path.display().to_string(), message };
+        let bytes = fs::read(&path).map_err(|e| {
+            resume_err(if ck.join("optimizer.bpk").is_file() {
+                "missing: this checkpoint was written by burn's learner; resume with --set train.learner=burn".into()
+            } else {
+                e.to_string()
+            })
+        })?;
+        let adam = crate::fast::AdamState::from_bytes(&bytes).map_err(resume_err)?;
+        ppo.restore_adam(adam).map_err(resume_err)?;
+    }
     ppo.obs_norm = st.obs_norm.clone();
     ppo.value_norm = st.value_norm.clone();
     Ok(())
@@ -270,7 +286,14 @@ fn save_checkpoint(dir: &Path, ppo: &Ppo, state: &TrainerState) -> Result<(), Tr
     atomic_dir(dir, |tmp| {
         let mut store = BurnpackStore::from_file(tmp.join("model.bpk")).overwrite(true);
         ppo.model().save_into(&mut store).map_err(|e| io_err(&tmp.join("model.bpk"), e))?;
-        ppo.optimizer().save(tmp.join("optimizer.bpk")).map_err(|e| io_err(&tmp.join("optimizer.bpk"), e))?;
+        match ppo.fast_adam() {
+            Some(adam) => {
+                fs::write(tmp.join(ADAM_FILE), adam.to_bytes()).map_err(|e| io_err(&tmp.join(ADAM_FILE), e))?
+            }
+            None => {
+                ppo.optimizer().save(tmp.join("optimizer.bpk")).map_err(|e| io_err(&tmp.join("optimizer.bpk"), e))?
+            }
+        }
         let json = serde_json::to_string_pretty(state).expect("state serialises");
         fs::write(tmp.join("state.json"), json).map_err(|e| io_err(&tmp.join("state.json"), e))
     })

@@ -100,7 +100,7 @@ fn stop_checkpoint_and_resume() {
         "metrics.csv",
         "summary.json",
         "checkpoint/model.bpk",
-        "checkpoint/optimizer.bpk",
+        "checkpoint/adam.bin",
         "checkpoint/state.json",
     ] {
         assert!(out.join(f).is_file(), "{f} written");
@@ -117,6 +117,11 @@ fn stop_checkpoint_and_resume() {
     let mut epochs = Vec::new();
     let s = train(&cfg, &opts(&out, true), &mut |r| epochs.push(r.epoch)).unwrap();
     assert_eq!(epochs, vec![3, 4, 5, 6]);
+    // Adam's moments and step count came back with the network: 6 epochs of 2 mini-epochs
+    // x 2 minibatches, not the 4 x 4 a fresh optimiser would have counted.
+    let adam =
+        rlnav_train::fast::AdamState::from_bytes(&std::fs::read(out.join("checkpoint/adam.bin")).unwrap()).unwrap();
+    assert_eq!(adam.step, 6 * 2 * 2);
     assert!(!s.interrupted && s.iterations == 6 && s.env_steps == 6 * 16 * 32);
     assert!(s.final_eval.is_some());
     assert_eq!(metrics(&out).len(), 7, "header + 6 epochs");
@@ -171,13 +176,13 @@ fn resume_after_a_kill_logs_each_epoch_once() {
     .unwrap();
     let saved = tmp("killed-checkpoint");
     std::fs::create_dir_all(&saved).unwrap();
-    for f in ["model.bpk", "optimizer.bpk", "state.json"] {
+    for f in ["model.bpk", "adam.bin", "state.json"] {
         std::fs::copy(out.join("checkpoint").join(f), saved.join(f)).unwrap();
     }
     train(&smoke(5), &opts(&out, true), &mut |_| {}).unwrap();
     // Now make it look like `kill -9` after epoch 5, before the next checkpoint: the
     // checkpoint is epoch 3's, the logs run to epoch 5, each with a half-written last entry.
-    for f in ["model.bpk", "optimizer.bpk", "state.json"] {
+    for f in ["model.bpk", "adam.bin", "state.json"] {
         std::fs::copy(saved.join(f), out.join("checkpoint").join(f)).unwrap();
     }
     let mut csv = std::fs::OpenOptions::new().append(true).open(out.join("metrics.csv")).unwrap();
@@ -296,5 +301,27 @@ fn held_out_rooms_several_robots_and_a_plan() {
     let jackal = e.outside(&rlnav_sim::RobotSpec::load("jackal").unwrap());
     let says = |what: &str| jackal.iter().any(|w| w.contains(what));
     assert!(says("top speed") && says("lidar range"), "{jackal:?}");
+    std::fs::remove_dir_all(out).ok();
+}
+
+#[test]
+fn burn_learner_runs_and_its_checkpoints_are_not_resumed_by_the_other() {
+    let out = tmp("burn-learner");
+    let mut cfg = smoke(2);
+    cfg.train.learner = rlnav_train::config::Learner::Burn;
+    let s = train(&cfg, &opts(&out, false), &mut |_| {}).unwrap();
+    assert_eq!(s.iterations, 2);
+    assert!(out.join("checkpoint/optimizer.bpk").is_file() && !out.join("checkpoint/adam.bin").exists());
+    // The same folder resumed by the hand-written learner: it names the file and the fix.
+    let mut fast = smoke(3);
+    fast.train.learner = rlnav_train::config::Learner::Fast;
+    let e = train(&fast, &opts(&out, true), &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("adam.bin") && e.contains("train.learner=burn"), "{e}");
+    // An LSTM cannot use the hand-written learner.
+    let mut lstm = smoke(1);
+    lstm.network.lstm_units = 8;
+    lstm.train.learner = rlnav_train::config::Learner::Fast;
+    let e = rlnav_sim::config::Validate::validate(&lstm).unwrap_err();
+    assert_eq!(e.key, "train.learner", "{e:?}");
     std::fs::remove_dir_all(out).ok();
 }
