@@ -280,7 +280,49 @@ impl Default for GeneratorSpec {
     }
 }
 
+/// `[lo, hi]` with its upper end brought down to `lo + d·(hi − lo)`: the range a generator
+/// draws from at difficulty `d`.
+fn scale_up(r: [f32; 2], d: f32) -> [f32; 2] {
+    [r[0], r[0] + d * (r[1] - r[0])]
+}
+
+/// A count range at difficulty `d` (see [`scale_up`]), the upper end rounded.
+fn scale_count(r: [u32; 2], d: f32) -> [u32; 2] {
+    [r[0], r[0] + (d * (r[1] - r[0]) as f32).round() as u32]
+}
+
 impl GeneratorSpec {
+    /// The generator at difficulty `d` in [0, 1]: 1 is the generator as written; lower values
+    /// bring every range's hard end towards its easy end: fewer obstacles, fewer of them on the
+    /// start–goal line and in front of the goal, fewer partitions (and thinner, with wider
+    /// doors), fewer dead ends, fewer and slower movers and people.
+    pub fn at_difficulty(&self, d: f32) -> Self {
+        let d = d.clamp(0.0, 1.0);
+        let mut g = self.clone();
+        g.count = scale_count(g.count, d);
+        g.on_line *= d;
+        g.goal_behind *= d;
+        if let Some(p) = &mut g.partitions {
+            p.probability *= d;
+            p.count = scale_count(p.count, d);
+            p.thickness = scale_up(p.thickness, d);
+            // Narrow doors are the hard ones.
+            p.door = [p.door[1] - d * (p.door[1] - p.door[0]), p.door[1]];
+        }
+        if let Some(c) = &mut g.concave {
+            c.count = scale_count(c.count, d);
+        }
+        if let Some(m) = &mut g.movers {
+            m.count = scale_count(m.count, d);
+            m.speed = scale_up(m.speed, d);
+        }
+        if let Some(p) = &mut g.people {
+            p.count = scale_count(p.count, d);
+            p.speed = scale_up(p.speed, d);
+        }
+        g
+    }
+
     /// Whether it builds around the start–goal line (and so draws start and goal first).
     fn builds_around_line(&self) -> bool {
         self.on_line > 0.0 || self.goal_behind > 0.0 || self.partitions.is_some() || self.concave.is_some()
@@ -451,6 +493,18 @@ impl Validate for ScenarioSpec {
 }
 
 impl ScenarioSpec {
+    /// The scenario at difficulty `d` in [0, 1] ([`GeneratorSpec::at_difficulty`]; start–goal
+    /// distances are drawn up to `lo + (0.3 + 0.7·d)·(hi − lo)`, a range wide enough to draw
+    /// from even at 0). A scenario without a generator is the same at every difficulty.
+    pub fn at_difficulty(&self, d: f32) -> Self {
+        let mut s = self.clone();
+        if let Some(g) = &self.procedural {
+            s.procedural = Some(g.at_difficulty(d));
+            s.start_goal_distance = scale_up(s.start_goal_distance, 0.3 + 0.7 * d.clamp(0.0, 1.0));
+        }
+        s
+    }
+
     /// A shipped scenario by name, a YAML file by path, or one BARN world (`barn#world_N` for
     /// the embedded worlds, `FILE.json#world_N` for another file).
     pub fn load(name_or_path: &str) -> Result<Self, ConfigError> {
@@ -709,6 +763,12 @@ impl Scenario {
     /// Free space required around the robot's centre at the start.
     pub fn start_clearance(&self) -> f32 {
         self.start_clearance
+    }
+
+    /// The same scenario, compiled for the same robot, at difficulty `d` in [0, 1]
+    /// ([`ScenarioSpec::at_difficulty`]).
+    pub fn at_difficulty(&self, d: f32) -> Result<Self, ConfigError> {
+        Self::new(self.spec.at_difficulty(d), self.clearance, self.start_clearance - self.clearance)
     }
 
     /// Draws one episode: a world (generated if the scenario has a generator), and a start and

@@ -441,6 +441,9 @@ pub struct EnvSetup {
     pub lidar: Lidar,
     /// The robot's footprint, compiled.
     pub footprint: Footprint,
+    /// The scenario at evenly spaced difficulties from 0 to 1, for an automatic curriculum
+    /// (empty unless built with [`Self::with_difficulty_levels`]).
+    pub levels: Vec<Scenario>,
     substeps: u32,
     obs_dim: usize,
 }
@@ -471,7 +474,26 @@ impl EnvSetup {
         let scenario = Scenario::new(scenario, clearance, turning_radius)?;
         let substeps = (task.control_period / task.physics_dt).round() as u32;
         let obs_dim = task.observation.len();
-        Ok(Self { scenario, lidar: Lidar::new(robot.lidar.clone()), footprint, robot, task, substeps, obs_dim })
+        Ok(Self {
+            scenario,
+            lidar: Lidar::new(robot.lidar.clone()),
+            footprint,
+            robot,
+            task,
+            levels: Vec::new(),
+            substeps,
+            obs_dim,
+        })
+    }
+
+    /// Adds `n` (≥ 2) difficulty levels of the scenario, level `k` at difficulty `k / (n - 1)`
+    /// (the last is the scenario as written), for environments whose level an automatic
+    /// curriculum moves ([`NavEnv::set_level`]).
+    pub fn with_difficulty_levels(mut self, n: usize) -> Result<Self, SimError> {
+        let n = n.max(2);
+        self.levels =
+            (0..n).map(|k| self.scenario.at_difficulty(k as f32 / (n - 1) as f32)).collect::<Result<_, _>>()?;
+        Ok(self)
     }
 
     /// Loads the scenario (preset or file) with its own robot and the default task.
@@ -497,6 +519,8 @@ impl EnvSetup {
 pub struct NavEnv {
     setup: Arc<EnvSetup>,
     rng: Pcg64Mcg,
+    /// Difficulty level (index into `setup.levels`) of an automatic curriculum.
+    level: Option<usize>,
     world: Arc<World>,
     drive: DiffDrive,
     goal: Vec2,
@@ -588,6 +612,7 @@ impl NavEnv {
             target: Vec2::ZERO,
             prior_plan: Arc::from(Vec::new()),
             no_plan: Arc::from(Vec::new()),
+            level: None,
             setup,
         };
         env.reset()?;
@@ -596,8 +621,13 @@ impl NavEnv {
 
     /// Starts a new episode: draws a world, start and goal, and takes the first scan.
     pub fn reset(&mut self) -> Result<(), SimError> {
+        let setup = self.setup.clone();
+        let scenario = match self.level {
+            Some(l) => &setup.levels[l],
+            None => &setup.scenario,
+        };
         // A moving obstacle may start on top of the robot; draw again (rarely needed).
-        let mut ep = self.setup.scenario.sample(&mut self.rng)?;
+        let mut ep = scenario.sample(&mut self.rng)?;
         let room = self.setup.scenario.start_clearance();
         for _ in 0..20 {
             let p = ep.start.position();
@@ -606,7 +636,7 @@ impl NavEnv {
             {
                 break;
             }
-            ep = self.setup.scenario.sample(&mut self.rng)?;
+            ep = scenario.sample(&mut self.rng)?;
         }
         self.movers = ep.movers;
         self.crowd = Crowd::new(ep.people, &ep.world);
@@ -632,7 +662,7 @@ impl NavEnv {
         // A goal that moves has no fixed plan; it is steered to directly.
         let plan = match &self.setup.task.plan {
             Some(_) if ep.goal_velocity == Vec2::ZERO => {
-                self.setup.scenario.global_plan(&self.world, &ep.reach, self.start, ep.goal)
+                scenario.global_plan(&self.world, &ep.reach, self.start, ep.goal)
             }
             _ => None,
         };
@@ -893,6 +923,33 @@ impl NavEnv {
     /// Theta* over the world's free cells (it allocates; stepping never calls it).
     pub fn shortest_path_length(&self) -> Option<f32> {
         self.reach.as_ref()?.shortest_path_length(self.start, self.first_goal)
+    }
+
+    /// Difficulty level of an automatic curriculum (`None` when off).
+    pub fn level(&self) -> Option<usize> {
+        self.level
+    }
+
+    /// Puts the environment on difficulty level `level` of its setup's
+    /// [`EnvSetup::levels`] (clamped to the last), or off the levels (`None`); the next
+    /// [`Self::reset`] draws from it.
+    pub fn set_level(&mut self, level: Option<usize>) {
+        let n = self.setup.levels.len();
+        self.level = level.filter(|_| n > 0).map(|l| l.min(n - 1));
+    }
+
+    /// The automatic curriculum's move after an episode (as Isaac Lab moves terrain levels): a
+    /// success goes one level up, a failure one down; a success on the top level sends the
+    /// environment to a random level, so that easier rooms keep being seen.
+    pub fn advance_level(&mut self, success: bool) {
+        let n = self.setup.levels.len();
+        if let Some(l) = self.level {
+            self.level = Some(match (success, l + 1 >= n) {
+                (true, true) => self.rng.random_range(0..n),
+                (true, false) => l + 1,
+                (false, _) => l.saturating_sub(1),
+            });
+        }
     }
 
     /// The statistics of the episode that ended last (`None` before the first ends).

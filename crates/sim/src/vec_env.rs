@@ -119,6 +119,37 @@ impl VecEnv {
         &self.envs
     }
 
+    /// Starts an automatic curriculum: every environment goes to a level drawn uniformly from
+    /// `0..=start_max` of its setup's [`EnvSetup::levels`] (which must be built) and starts a
+    /// new episode there; from then on each episode's outcome moves its environment's level
+    /// ([`NavEnv::advance_level`]).
+    pub fn start_levels(&mut self, start_max: usize, seed: u64) -> Result<(), SimError> {
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+        for env in &mut self.envs {
+            assert!(!env.setup().levels.is_empty(), "difficulty levels are built for every setup");
+            env.set_level(Some(rng.random_range(0..=start_max)));
+        }
+        let d = self.obs_dim;
+        let Self { envs, pool, obs, .. } = self;
+        pool.install(|| {
+            envs.par_iter_mut().zip(obs.par_chunks_mut(d)).try_for_each(|(env, o)| {
+                env.reset()?;
+                env.write_observation(o);
+                Ok(())
+            })
+        })
+    }
+
+    /// Mean difficulty of the environments' levels in [0, 1] (`None` without levels).
+    pub fn mean_difficulty(&self) -> Option<f32> {
+        let levels: Vec<f32> = self
+            .envs
+            .iter()
+            .filter_map(|e| e.level().map(|l| l as f32 / (e.setup().levels.len() - 1).max(1) as f32))
+            .collect();
+        (!levels.is_empty()).then(|| levels.iter().sum::<f32>() / levels.len() as f32)
+    }
+
     /// Steps every environment with its normalised action (`actions.len() == len()`),
     /// resetting those whose episode ended.
     pub fn step(&mut self, actions: &[[f32; 2]]) -> Result<(), SimError> {
@@ -145,6 +176,9 @@ impl VecEnv {
                         if out.terminated || out.truncated {
                             env.write_observation(&mut fobs[i * d..(i + 1) * d]);
                             fin[i] = env.last_episode();
+                            if let Some(e) = &fin[i] {
+                                env.advance_level(e.outcome == crate::task::Outcome::Success);
+                            }
                             env.reset()?;
                         } else {
                             fin[i] = None;

@@ -168,3 +168,60 @@ fn moving_goal_moves_within_the_room_and_can_be_reached() {
     let ok = (0..30).filter(|_| env.run_episode(&mut c).unwrap().outcome == Outcome::Success).count();
     assert!(ok >= 22, "greedy catches a slow target: {ok}/30");
 }
+
+/// One difficulty parameter scales the generator: at 0 the rooms hold fewer obstacles and no
+/// partitions, at 1 they are the scenario as written; the automatic curriculum moves each
+/// environment's level by its episodes' outcomes.
+#[test]
+fn difficulty_levels_scale_the_rooms_and_follow_outcomes() {
+    use rlnav_sim::ScenarioSpec;
+    let spec = ScenarioSpec::load("random-rooms").unwrap();
+    assert_eq!(spec.at_difficulty(1.0), spec, "full difficulty is the scenario as written");
+    let easy = spec.at_difficulty(0.0);
+    let g = easy.procedural.as_ref().unwrap();
+    let full = spec.procedural.as_ref().unwrap();
+    assert_eq!(g.count, [full.count[0], full.count[0]]);
+    assert_eq!((g.on_line, g.goal_behind, g.partitions.as_ref().unwrap().probability), (0.0, 0.0, 0.0));
+    let door = g.partitions.as_ref().unwrap().door;
+    assert_eq!(door, [full.partitions.as_ref().unwrap().door[1]; 2], "only the widest door");
+    assert!(easy.start_goal_distance[1] < spec.start_goal_distance[1]);
+
+    // Mean obstacle count over drawn rooms grows with the level.
+    let setup = EnvSetup::from_scenario_name("random-rooms").unwrap().with_difficulty_levels(3).unwrap();
+    let setup = Arc::new(setup);
+    let mut env = rlnav_sim::NavEnv::new(setup.clone(), 3).unwrap();
+    let mut mean = Vec::new();
+    for level in 0..3 {
+        env.set_level(Some(level));
+        let mut n = 0;
+        for _ in 0..30 {
+            env.reset().unwrap();
+            n += env.world().obstacles().len();
+        }
+        mean.push(n as f32 / 30.0);
+    }
+    assert!(mean[0] < mean[1] && mean[1] < mean[2], "obstacles per room by level: {mean:?}");
+
+    // Success goes up, failure down (not below 0); success on the top level goes anywhere.
+    env.set_level(Some(1));
+    env.advance_level(true);
+    assert_eq!(env.level(), Some(2));
+    env.advance_level(false);
+    env.advance_level(false);
+    env.advance_level(false);
+    assert_eq!(env.level(), Some(0));
+    env.set_level(Some(7));
+    assert_eq!(env.level(), Some(2), "clamped to the top level");
+
+    // In a batch: driving straight into walls, every environment falls to level 0.
+    let mut venv = VecEnv::new(setup, 8, 1, 2).unwrap();
+    assert_eq!(venv.mean_difficulty(), None, "off until started");
+    venv.start_levels(2, 5).unwrap();
+    let start = venv.mean_difficulty().unwrap();
+    assert!((0.0..=1.0).contains(&start));
+    for _ in 0..600 {
+        venv.step(&[[1.0f32, 0.0]; 8]).unwrap();
+    }
+    let after = venv.mean_difficulty().unwrap();
+    assert!(after < start.max(0.01), "collisions lower the levels: {start} -> {after}");
+}

@@ -250,8 +250,31 @@ pub struct RunConfig {
     pub train: PpoConfig,
     /// Curriculum stages, in order (empty: train on `scenario` throughout).
     pub curriculum: Vec<StageConfig>,
+    /// Automatic curriculum: a difficulty level per environment, moved by its episodes'
+    /// outcomes (absent: every episode at the scenario's full difficulty).
+    pub auto_curriculum: Option<AutoCurriculum>,
     /// Evaluation.
     pub eval: EvalConfig,
+}
+
+/// An automatic curriculum, as Isaac Lab moves terrain levels: each training environment
+/// has a difficulty level; a success moves it one level up, a collision or time-out one down,
+/// and a success on the top level sends it to a random level. Level `k` of `levels` draws the
+/// scenario at difficulty `k / (levels - 1)` (`ScenarioSpec::at_difficulty`: fewer, smaller
+/// challenges at 0; the scenario as written at the top). Evaluations run at full difficulty.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AutoCurriculum {
+    /// Number of levels (default 10).
+    pub levels: usize,
+    /// Environments start on a level drawn from `0..=start_max` (default 3).
+    pub start_max: usize,
+}
+
+impl Default for AutoCurriculum {
+    fn default() -> Self {
+        Self { levels: 10, start_max: 3 }
+    }
 }
 
 impl Default for RunConfig {
@@ -266,6 +289,7 @@ impl Default for RunConfig {
             network: NetworkConfig::default(),
             train: PpoConfig::default(),
             curriculum: Vec::new(),
+            auto_curriculum: None,
             eval: EvalConfig::default(),
         }
     }
@@ -305,6 +329,20 @@ impl Validate for RunConfig {
                 "train.minibatch_size",
                 format!("a divisor of num_actors * horizon_length = {batch}, got {}", t.minibatch_size),
             ));
+        }
+        if let Some(a) = &self.auto_curriculum {
+            if !(2..=1000).contains(&a.levels) {
+                return Err(Invalid::new(
+                    "auto_curriculum.levels",
+                    format!("an integer in [2, 1000], got {}", a.levels),
+                ));
+            }
+            if a.start_max >= a.levels {
+                return Err(Invalid::new(
+                    "auto_curriculum.start_max",
+                    format!("a level below `levels` ({}), got {}", a.levels, a.start_max),
+                ));
+            }
         }
         if self.network.is_recurrent() && t.learner == Learner::Fast {
             return Err(Invalid::new(

@@ -94,6 +94,9 @@ pub struct EpochReport {
     pub eval: Option<EvalSummary>,
     /// Evaluation on the held-out scenarios (pooled), when one ran after this epoch.
     pub heldout: Option<EvalSummary>,
+    /// Mean difficulty of the training environments' levels in [0, 1] under an automatic
+    /// curriculum.
+    pub difficulty: Option<f32>,
 }
 
 /// When the periodic evaluation first reached a success rate: the cost of getting there.
@@ -202,8 +205,19 @@ fn env_setup(cfg: &RunConfig, scenario: &str, task: TaskConfig) -> Result<Vec<Ar
     names.iter().map(|r| Ok(Arc::new(EnvSetup::new(spec.clone(), RobotSpec::load(r)?, task.clone())?))).collect()
 }
 
+/// A training stage's setups, with difficulty levels under an automatic curriculum.
 fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
-    env_setup(cfg, &stage.scenario, apply_task_overrides(&cfg.task, &stage.task, &stage.name)?)
+    let setups = env_setup(cfg, &stage.scenario, apply_task_overrides(&cfg.task, &stage.task, &stage.name)?)?;
+    match &cfg.auto_curriculum {
+        None => Ok(setups),
+        Some(a) => setups
+            .into_iter()
+            .map(|s| {
+                let s = Arc::into_inner(s).expect("a setup just built has one owner");
+                Ok(Arc::new(s.with_difficulty_levels(a.levels)?))
+            })
+            .collect(),
+    }
 }
 
 /// The hand-written learner's Adam state in a checkpoint (burn's learner writes `optimizer.bpk`).
@@ -350,7 +364,7 @@ impl Window {
     }
 }
 
-const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate,sim_s,rollout_s,update_s,heldout_success_rate,heldout_collision_rate";
+const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate,sim_s,rollout_s,update_s,heldout_success_rate,heldout_collision_rate,difficulty";
 
 fn csv_row(r: &EpochReport) -> String {
     let u = &r.update;
@@ -362,8 +376,9 @@ fn csv_row(r: &EpochReport) -> String {
         Some(e) => (e.success_rate.to_string(), e.collision_rate.to_string()),
         None => (String::new(), String::new()),
     };
+    let difficulty = r.difficulty.map(|d| format!("{d:.4}")).unwrap_or_default();
     format!(
-        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et},{:.4},{:.4},{:.4},{hs},{hc}",
+        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et},{:.4},{:.4},{:.4},{hs},{hc},{difficulty}",
         r.epoch,
         r.env_steps,
         r.wall_s,
@@ -536,13 +551,13 @@ pub fn train(
     let mut tb = crate::tensorboard::EventWriter::create(&tb_dir).map_err(|e| io_err(&tb_dir, e))?;
 
     let threads = cfg.train.threads;
-    let env_for = |stage: usize, epoch: usize| {
-        VecEnv::new_mixed(
-            &setups[stage],
-            cfg.train.num_actors,
-            rlnav_sim::vec_env::env_seed(cfg.seed, epoch << 8 | stage),
-            threads,
-        )
+    let env_for = |stage: usize, epoch: usize| -> Result<VecEnv, TrainError> {
+        let seed = rlnav_sim::vec_env::env_seed(cfg.seed, epoch << 8 | stage);
+        let mut env = VecEnv::new_mixed(&setups[stage], cfg.train.num_actors, seed, threads)?;
+        if let Some(a) = &cfg.auto_curriculum {
+            env.start_levels(a.start_max, seed ^ 0x1E7E_1500)?;
+        }
+        Ok(env)
     };
     let mut env = env_for(st.stage, st.epoch)?;
     let mut window = Window { outcomes: VecDeque::new(), size: stages[st.stage].advance.window };
@@ -617,6 +632,7 @@ pub fn train(
             update_s: (t2 - t1).as_secs_f64(),
             eval: eval_result,
             heldout: heldout_result,
+            difficulty: env.mean_difficulty(),
         };
         writeln!(csv, "{}", csv_row(&report)).map_err(|e| io_err(&out.join("metrics.csv"), e))?;
         let step = st.env_steps as i64;
@@ -635,6 +651,9 @@ pub fn train(
             ("performance/steps_per_s", report.steps_per_s as f32),
             ("curriculum/stage", st.stage as f32),
         ];
+        if let Some(d) = report.difficulty {
+            scalars.push(("curriculum/difficulty", d));
+        }
         if let Some(e) = &report.eval {
             scalars.extend([("eval/success_rate", e.success_rate), ("eval/collision_rate", e.collision_rate)]);
         }

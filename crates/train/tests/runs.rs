@@ -325,3 +325,33 @@ fn burn_learner_runs_and_its_checkpoints_are_not_resumed_by_the_other() {
     assert_eq!(e.key, "train.learner", "{e:?}");
     std::fs::remove_dir_all(out).ok();
 }
+
+#[test]
+fn an_automatic_curriculum_logs_its_difficulty() {
+    let out = tmp("auto-curriculum");
+    let mut cfg = smoke(2);
+    cfg.scenario = "random-rooms".into();
+    cfg.auto_curriculum = Some(rlnav_train::config::AutoCurriculum { levels: 5, start_max: 2 });
+    train(&cfg, &opts(&out, false), &mut |r| {
+        let d = r.difficulty.expect("a difficulty every epoch");
+        assert!((0.0..=0.75).contains(&d) || r.epoch > 1, "starts on levels 0-2 of 0-4: {d}");
+    })
+    .unwrap();
+    let text = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "difficulty").unwrap();
+    for row in text.lines().skip(1) {
+        let d: f32 = row.split(',').nth(col).unwrap().parse().unwrap();
+        assert!((0.0..=1.0).contains(&d), "{row}");
+    }
+    let mut tags = Vec::new();
+    for f in std::fs::read_dir(out.join("tensorboard")).unwrap() {
+        tags.extend(rlnav_train::tensorboard::read_scalars(&f.unwrap().path()).unwrap().into_iter().map(|(_, t, _)| t));
+    }
+    assert!(tags.iter().any(|t| t == "curriculum/difficulty"));
+    // A start level beyond the levels is refused by name.
+    cfg.auto_curriculum = Some(rlnav_train::config::AutoCurriculum { levels: 3, start_max: 3 });
+    let e = rlnav_sim::config::Validate::validate(&cfg).unwrap_err();
+    assert_eq!(e.key, "auto_curriculum.start_max", "{e:?}");
+    std::fs::remove_dir_all(out).ok();
+}
