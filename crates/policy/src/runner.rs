@@ -95,6 +95,8 @@ pub struct PolicyRunner {
     /// trained on plans); a new plan starts from its beginning.
     nav_plan: Option<std::sync::Arc<[rlnav_sim::Vec2]>>,
     plan_progress: usize,
+    /// The `plan_ahead` observation term's points (robot frame), preallocated.
+    ahead: Vec<rlnav_sim::Vec2>,
     name: String,
 }
 
@@ -242,6 +244,7 @@ impl PolicyRunner {
             fault: None,
             nav_plan: None,
             plan_progress: 0,
+            ahead: Vec::new(),
             name,
             contract,
         };
@@ -335,6 +338,16 @@ impl PolicyRunner {
             _ => o.goal,
         };
         let (goal_distance, goal_bearing) = o.pose.polar_of(target);
+        if let Some((points, spacing)) = self.contract.observation.plan_ahead() {
+            // The plan being followed (as the simulator's task does), or the line to the goal.
+            let line = [o.pose.position(), o.goal];
+            let (path, progress): (&[rlnav_sim::Vec2], usize) = match &self.contract.plan {
+                Some(_) if !o.plan.is_empty() => (&o.plan, self.plan_progress),
+                _ => (&line, 0),
+            };
+            self.ahead.resize(points, rlnav_sim::Vec2::ZERO);
+            rlnav_sim::plan::points_ahead(path, progress, &o.pose, spacing, &mut self.ahead);
+        }
         let inputs = ObservationInputs {
             ranges: &self.scan,
             goal_distance,
@@ -342,6 +355,7 @@ impl PolicyRunner {
             last_command: self.last,
             velocity: o.velocity,
             lateral_velocity: o.lateral_velocity,
+            plan_ahead: &self.ahead,
         };
         self.observer.write(&inputs, &mut self.obs, || 0.0);
         if let Some(i) = self.obs.iter().position(|x| !x.is_finite()) {

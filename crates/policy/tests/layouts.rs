@@ -180,3 +180,42 @@ fn the_simulator_trains_on_what_the_runner_builds_for_the_history_layouts() {
         assert!(steps > 20, "{file}: {steps} steps compared");
     }
 }
+
+/// A `plan_ahead` term, with and without a global plan: the runner shows the same points of
+/// the path ahead as the simulator trained on, in a room known in advance (where both follow
+/// the plan) and in generated ones (where both show the line to the goal).
+#[test]
+fn the_simulator_and_the_runner_agree_on_the_path_ahead() {
+    use rlnav_sim::task::PlanConfig;
+    for (scenario, plan) in [("heldout-static-u-trap", true), ("random-static", false)] {
+        let mut c = PolicyContract::from_file(&contract_path("article-mlp-133.yaml")).unwrap();
+        c.observation = rlnav_sim::ObservationLayout(vec![
+            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
+            ObsTerm::GoalDistance,
+            ObsTerm::GoalBearing,
+            ObsTerm::PlanAhead { points: 4, spacing: 0.3 },
+        ]);
+        c.plan = plan.then_some(PlanConfig { lookahead: 1.0 });
+        let n = c.observation.len();
+        assert_eq!(n, 130);
+        let spec = ScenarioSpec::load(scenario).unwrap();
+        let robot = RobotSpec::load("jetbot").unwrap();
+        let task = TaskConfig { observation: c.observation.clone(), plan: c.plan.clone(), ..Default::default() };
+        let setup = Arc::new(EnvSetup::new(spec, robot, task).unwrap());
+        c.scan = rlnav_policy::contract::ScanContract::of(&setup.robot.lidar);
+        c.io.recurrent.clear();
+        let net =
+            ActorCritic::seeded(&NetworkConfig { hidden: vec![16], ..Default::default() }, n, 2, &Device::flex(), 2);
+        let proto = export_model(&net, &RunningMeanStd::new(n), &c).unwrap();
+        let mut runner = PolicyRunner::from_proto("ahead.onnx", &proto, c).unwrap();
+        let mut env = NavEnv::new(setup, 8).unwrap();
+        assert_eq!(env.plan().is_empty(), !plan, "{scenario}");
+        let mut obs = vec![0.0; n];
+        env.write_observation(&mut obs);
+        // The first point lies 0.3 m along the path.
+        let first = Vec2::new(obs[122], obs[123]).length();
+        assert!((first - 0.3).abs() < 0.05, "{scenario}: first point {first} m away");
+        let steps = common::runner_matches_simulator(&mut runner, &mut env, scenario);
+        assert!(steps > 20, "{scenario}: {steps} steps compared");
+    }
+}

@@ -17,6 +17,8 @@ use serde::{Deserialize, Serialize};
 
 /// Largest history a term may ask for (steps).
 pub const MAX_HISTORY_STEPS: usize = 1000;
+/// Most points a `plan_ahead` term may show.
+pub const MAX_PLAN_POINTS: usize = 64;
 
 /// One term of the observation vector.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -46,6 +48,16 @@ pub enum ObsTerm {
     Lateral,
     /// Measured angular velocity (rad/s).
     Angular,
+    /// Points `spacing`, 2·`spacing`, ... ahead along the path being followed (the global
+    /// plan, or the straight line to the goal without one), in the robot frame: `x, y` (m,
+    /// forward, left) per point, `2 × points` values. It shows the path's shape ahead (a sharp
+    /// turn after a door, round a wall's end) where the goal terms show one point.
+    PlanAhead {
+        /// Points shown.
+        points: usize,
+        /// Path length between them (m).
+        spacing: f32,
+    },
     /// The values of `term` at the last `steps` control steps, the current one included
     /// (`steps × term.len()` values).
     History {
@@ -88,6 +100,7 @@ impl ObsTerm {
         match self {
             ObsTerm::Lidar { beams, .. } => *beams,
             ObsTerm::History { term, steps, .. } => steps * term.len(),
+            ObsTerm::PlanAhead { points, .. } => 2 * points,
             _ => 1,
         }
     }
@@ -118,6 +131,7 @@ impl ObsTerm {
             ObsTerm::Linear => "linear",
             ObsTerm::Lateral => "lateral",
             ObsTerm::Angular => "angular",
+            ObsTerm::PlanAhead { .. } => "plan_ahead",
             ObsTerm::History { .. } => "history",
         }
     }
@@ -127,6 +141,7 @@ impl ObsTerm {
     pub fn describe(&self) -> String {
         match self {
             ObsTerm::Lidar { beams, clip } => format!("lidar {beams} beams, clip [{}, {}]", clip[0], clip[1]),
+            ObsTerm::PlanAhead { points, spacing } => format!("plan_ahead {points} points, {spacing} m apart"),
             ObsTerm::History { term, steps, order, fill } => format!(
                 "{} × {steps}, {}, before the episode: {}",
                 term.describe(),
@@ -151,6 +166,18 @@ impl ObsTerm {
                     return Err(Invalid::new(format!("{key}.lidar.beams"), "at least 1"));
                 }
                 check_interval(&format!("{key}.lidar.clip"), *clip, 0.0, 1000.0)
+            }
+            ObsTerm::PlanAhead { points, spacing } => {
+                if !(1..=MAX_PLAN_POINTS).contains(points) {
+                    return Err(Invalid::new(
+                        format!("{key}.plan_ahead.points"),
+                        format!("1 to {MAX_PLAN_POINTS}, got {points}"),
+                    ));
+                }
+                if !(spacing.is_finite() && *spacing > 0.0 && *spacing <= 100.0) {
+                    return Err(Invalid::new(format!("{key}.plan_ahead.spacing"), "a length in (0, 100] m"));
+                }
+                Ok(())
             }
             ObsTerm::History { term, steps, .. } => {
                 if !(1..=MAX_HISTORY_STEPS).contains(steps) {
@@ -231,6 +258,19 @@ impl ObservationLayout {
         })
     }
 
+    /// The `plan_ahead` term's `(points, spacing)` (the first, also inside a history): what
+    /// [`ObservationInputs::plan_ahead`] must hold.
+    pub fn plan_ahead(&self) -> Option<(usize, f32)> {
+        self.0.iter().find_map(|t| match t {
+            ObsTerm::PlanAhead { points, spacing } => Some((*points, *spacing)),
+            ObsTerm::History { term, .. } => match **term {
+                ObsTerm::PlanAhead { points, spacing } => Some((points, spacing)),
+                _ => None,
+            },
+            _ => None,
+        })
+    }
+
     fn max_lidar_beams(&self) -> usize {
         self.0.iter().filter_map(|t| t.lidar().map(|(b, _)| b)).max().unwrap_or(0)
     }
@@ -258,6 +298,10 @@ pub struct ObservationInputs<'a> {
     pub velocity: Twist,
     /// Measured lateral velocity (m/s, `base_link` y).
     pub lateral_velocity: f32,
+    /// The points a `plan_ahead` term shows, in the robot frame
+    /// ([`crate::plan::points_ahead`]); empty when the layout has none. Missing points read as
+    /// the last one given (zeros when none is).
+    pub plan_ahead: &'a [crate::geometry::Vec2],
 }
 
 /// The past of one history term.
@@ -440,6 +484,14 @@ fn write_term(
         ObsTerm::Linear => out[0] = inputs.velocity.linear,
         ObsTerm::Lateral => out[0] = inputs.lateral_velocity,
         ObsTerm::Angular => out[0] = inputs.velocity.angular,
+        ObsTerm::PlanAhead { points, .. } => {
+            let last = inputs.plan_ahead.last().copied().unwrap_or_default();
+            for k in 0..*points {
+                let p = inputs.plan_ahead.get(k).copied().unwrap_or(last);
+                out[2 * k] = p.x;
+                out[2 * k + 1] = p.y;
+            }
+        }
         ObsTerm::History { .. } => unreachable!("histories of histories are refused by ObservationLayout::check"),
     }
 }
@@ -457,6 +509,7 @@ mod tests {
             last_command: Twist::new(0.3, -0.2),
             velocity: Twist::new(0.25, 0.1),
             lateral_velocity: -0.05,
+            plan_ahead: &[],
         }
     }
 

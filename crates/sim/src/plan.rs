@@ -74,6 +74,18 @@ pub fn plan_subgoal(path: &[Vec2], progress: &mut usize, p: Vec2, lookahead: f32
     follow(path, &[], progress, p, lookahead).point
 }
 
+/// Fills `out` with the points `spacing`, 2·`spacing`, ... ahead along `path` of the robot at
+/// `pose` (projected as [`follow`] does, from segment `progress` on; the path's end where it
+/// is shorter), in the robot's frame (x forward, y left): what the `plan_ahead` observation
+/// term shows of the path's shape. `path` has at least one point.
+pub fn points_ahead(path: &[Vec2], progress: usize, pose: &crate::geometry::Pose2, spacing: f32, out: &mut [Vec2]) {
+    let here = pose.position();
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut at = progress;
+        *o = pose.to_local(follow(path, &[], &mut at, here, spacing * (k + 1) as f32).point);
+    }
+}
+
 /// A path's length.
 pub fn path_length(path: &[Vec2]) -> f32 {
     path.windows(2).map(|w| (w[1] - w[0]).length()).sum()
@@ -109,5 +121,24 @@ mod tests {
         let p = plan_subgoal(&d, &mut 0, Vec2::new(0.0, 0.0), 1.0);
         assert_eq!(p, Vec2::new(1.0, 0.0));
         assert_eq!(path_length(&d), 2.0);
+    }
+
+    #[test]
+    fn points_ahead_follow_the_path_in_the_robot_frame() {
+        use crate::geometry::Pose2;
+        // An L: 1 m along +x, then up. The robot at the start faces +y (left of the path).
+        let l = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 2.0)];
+        let pose = Pose2::new(0.0, 0.0, std::f32::consts::FRAC_PI_2);
+        let mut out = [Vec2::ZERO; 4];
+        points_ahead(&l, 0, &pose, 0.5, &mut out);
+        // World (0.5, 0), (1, 0), (1, 0.5), (1, 1) seen facing +y: x' = y, y' = -x.
+        let want = [(0.0, -0.5), (0.0, -1.0), (0.5, -1.0), (1.0, -1.0)];
+        for (o, w) in out.iter().zip(want) {
+            assert!((o.x - w.0).abs() < 1e-5 && (o.y - w.1).abs() < 1e-5, "{out:?}");
+        }
+        // Past the end: the end.
+        let mut far = [Vec2::ZERO; 2];
+        points_ahead(&l, 0, &Pose2::new(1.0, 1.5, 0.0), 1.0, &mut far);
+        assert!(far.iter().all(|p| (*p - Vec2::new(0.0, 0.5)).length() < 1e-5), "{far:?}");
     }
 }

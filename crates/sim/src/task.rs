@@ -521,6 +521,8 @@ pub struct NavEnv {
     rng: Pcg64Mcg,
     /// Difficulty level (index into `setup.levels`) of an automatic curriculum.
     level: Option<usize>,
+    /// The `plan_ahead` observation term's points (robot frame), preallocated.
+    ahead: Vec<Vec2>,
     world: Arc<World>,
     drive: DiffDrive,
     goal: Vec2,
@@ -613,6 +615,7 @@ impl NavEnv {
             prior_plan: Arc::from(Vec::new()),
             no_plan: Arc::from(Vec::new()),
             level: None,
+            ahead: vec![Vec2::ZERO; setup.task.observation.plan_ahead().map_or(0, |p| p.0)],
             setup,
         };
         env.reset()?;
@@ -850,6 +853,13 @@ impl NavEnv {
             bearing = wrap_angle(bearing + dr.obs_goal_bearing_std * self.rng.sample::<f32, _>(StandardNormal));
         }
         let lidar_std = dr.obs_lidar_std;
+        if let Some((_, spacing)) = self.setup.task.observation.plan_ahead() {
+            // The plan being followed, or the straight line to the goal.
+            let line = [self.drive.pose.position(), self.goal];
+            let (path, progress): (&[Vec2], usize) =
+                if self.plan.is_empty() { (&line, 0) } else { (&self.plan, self.plan_progress) };
+            crate::plan::points_ahead(path, progress, &self.drive.pose, spacing, &mut self.ahead);
+        }
         let inputs = ObservationInputs {
             ranges: &self.ranges,
             goal_distance: dist,
@@ -858,6 +868,7 @@ impl NavEnv {
             velocity: self.drive.velocity,
             // A differential drive does not slide sideways.
             lateral_velocity: 0.0,
+            plan_ahead: &self.ahead,
         };
         let rng = &mut self.rng;
         self.observer.write(&inputs, out, || {

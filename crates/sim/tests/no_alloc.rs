@@ -60,7 +60,8 @@ fn stepping_does_not_allocate() {
     assert!(resets > 5);
     assert_eq!(MINE.with(|c| c.get()) - before, 0, "NavEnv step/reset allocated");
 
-    // A layout with history terms (the article's 133 values): its past is kept in place.
+    // A layout with history terms (the article's 133 values) and the path ahead: its past is
+    // kept in place, the points written into a preallocated buffer.
     let spec = ScenarioSpec::load("static-room").unwrap();
     let robot = RobotSpec::load(&spec.robot).unwrap();
     let history = |term| ObsTerm::History {
@@ -76,10 +77,11 @@ fn stepping_does_not_allocate() {
         ObsTerm::Linear,
         ObsTerm::Lateral,
         ObsTerm::Angular,
+        ObsTerm::PlanAhead { points: 4, spacing: 0.3 },
     ]);
     let task = TaskConfig { observation, ..Default::default() };
     let mut env = NavEnv::new(Arc::new(EnvSetup::new(spec, robot, task).unwrap()), 3).unwrap();
-    let mut obs = vec![0.0; 133];
+    let mut obs = vec![0.0; 141];
     let before = MINE.with(|c| c.get());
     for i in 0..2000 {
         // Every other step without a write: the step records its observation itself.
