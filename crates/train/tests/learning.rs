@@ -6,9 +6,9 @@
 //! Training is deterministic for a seed and thread count on one machine, but floating-point
 //! kernels (GEMM blocking chosen from the CPU's caches, SIMD dispatch) differ between CPUs, so
 //! one seed's curve is one sample of the learning curve, not a constant. The thresholds below
-//! were set from seeds 0-7 of this configuration (docs/training.md, "Learning tests"): the run
-//! reached the target after 80-150 epochs (budget: 500), and the final test scored 0.95-0.99
-//! (threshold: 0.85).
+//! were set from seeds 0-7 of this configuration with the hand-written learner
+//! (docs/training.md, "Learning tests"): the run reached the target after 100-290 epochs
+//! (budget: 800), and the final test scored 0.89-1.0 (threshold: 0.80).
 
 use rlnav_train::config::load_run_config;
 use rlnav_train::run::Summary;
@@ -18,10 +18,11 @@ use std::sync::atomic::AtomicBool;
 
 /// Periodic-evaluation success at which training stops.
 const TARGET: f32 = 0.95;
-/// Epoch budget (of 64 x 64 steps): more than three times the slowest of seeds 0-7.
-const BUDGET: usize = 500;
-/// Success the stopped policy must hold on fresh episodes (worst of seeds 0-7: 0.95).
-const HOLDS: f32 = 0.85;
+/// Epoch budget (of 64 x 64 steps): 2.8 times the slowest of seeds 0-7 (290).
+const BUDGET: usize = 800;
+/// Success the stopped policy must hold on fresh episodes (worst of seeds 0-7: 0.89, about
+/// three binomial standard deviations of a 100-episode rate above this).
+const HOLDS: f32 = 0.80;
 
 /// Trains; returns the summary and, for `keep`, the run folder.
 fn run(extra: &[&str], name: &str, keep: bool) -> (Summary, Option<std::path::PathBuf>) {
