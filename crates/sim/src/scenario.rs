@@ -205,11 +205,16 @@ pub struct PartitionGenSpec {
     /// Wall thickness range (m, default [0, 0]: zero-thickness walls); a thick partition's
     /// door is a short corridor through it.
     pub thickness: [f32; 2],
+    /// Probability that a room's doors are staggered (default 0): each door at one end of its
+    /// partition, against the arena wall, on alternate sides, so that the way winds in an S
+    /// round the partitions' free ends (and, between close partitions, runs along a corridor
+    /// with a hairpin at each end).
+    pub staggered: f32,
 }
 
 impl Default for PartitionGenSpec {
     fn default() -> Self {
-        Self { count: [1, 1], door: [0.6, 1.2], probability: 1.0, thickness: [0.0, 0.0] }
+        Self { count: [1, 1], door: [0.6, 1.2], probability: 1.0, thickness: [0.0, 0.0], staggered: 0.0 }
     }
 }
 
@@ -304,6 +309,7 @@ impl GeneratorSpec {
         g.goal_behind *= d;
         if let Some(p) = &mut g.partitions {
             p.probability *= d;
+            p.staggered *= d;
             p.count = scale_count(p.count, d);
             p.thickness = scale_up(p.thickness, d);
             // Narrow doors are the hard ones.
@@ -441,6 +447,7 @@ impl Validate for ScenarioSpec {
                 check_interval("procedural.partitions.door", p.door, 0.1, 100.0)?;
                 check_range("procedural.partitions.probability", p.probability, 0.0, 1.0)?;
                 check_interval("procedural.partitions.thickness", p.thickness, 0.0, 10.0)?;
+                check_range("procedural.partitions.staggered", p.staggered, 0.0, 1.0)?;
             }
             if let Some(c) = &g.concave {
                 check_count("procedural.concave.count", c.count, 20)?;
@@ -1021,6 +1028,10 @@ impl Scenario {
             let n = rng.random_range(p.count[0]..=p.count[1]);
             // Across the line's main axis, at distinct fractions of the way.
             let vertical = line.x.abs() >= line.y.abs();
+            // Staggered doors: at the partitions' ends, alternating, from a random side.
+            // (No draws without `staggered`: the scenarios written before it draw as they did.)
+            let staggered = p.staggered > 0.0 && rng.random_range(0.0..1.0f32) < p.staggered;
+            let first_low = staggered && rng.random_range(0.0..1.0f32) < 0.5;
             for k in 0..n {
                 let t = (k as f32 + rng.random_range(0.35..=0.65f32)) / n as f32;
                 let cut = s + line * t;
@@ -1030,7 +1041,11 @@ impl Scenario {
                 if hi - lo < door + 2.0 * margin {
                     continue;
                 }
-                let d0 = rng.random_range(lo + margin..=hi - margin - door);
+                let d0 = if staggered {
+                    if (k % 2 == 0) == first_low { lo + margin } else { hi - margin - door }
+                } else {
+                    rng.random_range(lo + margin..=hi - margin - door)
+                };
                 let along = |v: f32| if vertical { [cut.x, v] } else { [v, cut.y] };
                 let thick = rng.random_range(p.thickness[0]..=p.thickness[1]);
                 if thick < 0.02 {
@@ -1306,6 +1321,36 @@ mod tests {
         assert!(concave >= 30, "{concave}/{n} with a concave shape");
         assert!(near_line >= n * 3 / 4, "{near_line}/{n} with an obstacle near the line");
         assert!(blocked_line >= n / 3, "{blocked_line}/{n} with the straight line blocked");
+    }
+
+    /// Staggered doors sit at the partitions' ends on alternate sides: the way winds round the
+    /// free ends, much longer than the straight line, and longer than through doors drawn
+    /// anywhere along the partitions.
+    #[test]
+    fn staggered_doors_make_the_way_wind() {
+        let detour = |staggered: f32, seed: u64| {
+            let yaml = format!(
+                "name: t\narena: {{size: [8, 8]}}\nprocedural:\n  count: [0, 0]\n  partitions: {{count: [2, 2], \
+                 door: [0.8, 0.8], staggered: {staggered}}}\nstart_goal_distance: [5, 7]\n"
+            );
+            let spec: ScenarioSpec = crate::config::from_yaml_str("t.yaml", &yaml).unwrap();
+            let s = Scenario::new(spec, 0.2, 0.0).unwrap();
+            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+            let ratios: Vec<f32> = (0..40)
+                .map(|_| {
+                    let e = s.sample(&mut rng).unwrap();
+                    let (a, b) = (e.start.position(), e.goal);
+                    e.reach.shortest_path_length(a, b).unwrap() / (b - a).length()
+                })
+                .collect();
+            (ratios.iter().sum::<f32>() / ratios.len() as f32, ratios.iter().cloned().fold(f32::INFINITY, f32::min))
+        };
+        let (wind, least) = detour(1.0, 8);
+        let (anywhere, _) = detour(0.0, 8);
+        // Measured over seeds 1-8: staggered mean 2.70-2.91 times the straight line, the least
+        // 1.69-1.93; doors anywhere: mean 1.58-1.74.
+        assert!(least > 1.4, "a staggered room whose way is nearly straight: {least}");
+        assert!(wind > anywhere + 0.6, "staggered {wind} vs doors anywhere {anywhere}");
     }
 
     #[test]
