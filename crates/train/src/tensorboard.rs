@@ -60,11 +60,13 @@ fn now() -> f64 {
 
 impl EventWriter {
     /// Creates a new `logdir/events.out.tfevents.<seconds>.rlnav.<pid>.<nanos>` (never an
-    /// existing file: a resumed run adds a file) and writes the version record.
+    /// existing file: a resumed run adds a file) and writes the version record. The
+    /// nanoseconds have nine digits, so that two sessions of one process within a second sort
+    /// by name in the order they started (TensorBoard reads files in name order).
     pub fn create(logdir: &Path) -> io::Result<Self> {
         std::fs::create_dir_all(logdir)?;
         let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
-        let name = format!("events.out.tfevents.{}.rlnav.{}.{}", t.as_secs(), std::process::id(), t.subsec_nanos());
+        let name = format!("events.out.tfevents.{}.rlnav.{}.{:09}", t.as_secs(), std::process::id(), t.subsec_nanos());
         let path = logdir.join(name);
         let mut w = Self { out: BufWriter::new(File::create_new(&path)?), path };
         w.event(&Event { wall_time: now(), step: 0, file_version: Some("brain.Event:2".into()), summary: None })?;
@@ -213,6 +215,15 @@ mod tests {
         // crc32c (Castagnoli) check value, and the masked CRC of nothing (just the mask delta).
         assert_eq!(crc32c::crc32c(b"123456789"), 0xe306_9283, "Castagnoli check value");
         assert_eq!(masked_crc(b""), 0xa282_ead8);
+    }
+
+    #[test]
+    fn files_of_one_second_sort_in_creation_order() {
+        let dir = std::env::temp_dir().join(format!("rlnav-tb-order-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let made: Vec<PathBuf> = (0..20).map(|_| EventWriter::create(&dir).unwrap().path().to_path_buf()).collect();
+        assert_eq!(event_files(&dir).unwrap(), made, "name order is creation order");
+        std::fs::remove_dir_all(dir).ok();
     }
 
     #[test]
