@@ -339,14 +339,10 @@ impl PolicyRunner {
         };
         let (goal_distance, goal_bearing) = o.pose.polar_of(target);
         if let Some((points, spacing)) = self.contract.observation.plan_ahead() {
-            // The plan being followed (as the simulator's task does), or the line to the goal.
-            let line = [o.pose.position(), o.goal];
-            let (path, progress): (&[rlnav_sim::Vec2], usize) = match &self.contract.plan {
-                Some(_) if !o.plan.is_empty() => (&o.plan, self.plan_progress),
-                _ => (&line, 0),
-            };
+            // The plan the policy follows (as in training), or none: the line to the goal.
+            let plan: &[rlnav_sim::Vec2] = if self.contract.plan.is_some() { &o.plan } else { &[] };
             self.ahead.resize(points, rlnav_sim::Vec2::ZERO);
-            rlnav_sim::plan::points_ahead(path, progress, &o.pose, spacing, &mut self.ahead);
+            rlnav_sim::plan::points_ahead(plan, self.plan_progress, o.goal, &o.pose, spacing, &mut self.ahead);
         }
         let inputs = ObservationInputs {
             ranges: &self.scan,

@@ -74,12 +74,22 @@ pub fn plan_subgoal(path: &[Vec2], progress: &mut usize, p: Vec2, lookahead: f32
     follow(path, &[], progress, p, lookahead).point
 }
 
-/// Fills `out` with the points `spacing`, 2·`spacing`, ... ahead along `path` of the robot at
-/// `pose` (projected as [`follow`] does, from segment `progress` on; the path's end where it
-/// is shorter), in the robot's frame (x forward, y left): what the `plan_ahead` observation
-/// term shows of the path's shape. `path` has at least one point.
-pub fn points_ahead(path: &[Vec2], progress: usize, pose: &crate::geometry::Pose2, spacing: f32, out: &mut [Vec2]) {
+/// Fills `out` with the points `spacing`, 2·`spacing`, ... ahead of the robot at `pose` along
+/// the path it follows: `plan` (projected as [`follow`] does, from segment `progress` on), or
+/// the straight line to `goal` when `plan` is empty; the path's end where it is shorter. In the
+/// robot's frame (x forward, y left): what the `plan_ahead` observation term shows of the
+/// path's shape. The simulator and the policy runner both call it, so they cannot differ.
+pub fn points_ahead(
+    plan: &[Vec2],
+    progress: usize,
+    goal: Vec2,
+    pose: &crate::geometry::Pose2,
+    spacing: f32,
+    out: &mut [Vec2],
+) {
     let here = pose.position();
+    let line = [here, goal];
+    let (path, progress) = if plan.is_empty() { (&line[..], 0) } else { (plan, progress) };
     for (k, o) in out.iter_mut().enumerate() {
         let mut at = progress;
         *o = pose.to_local(follow(path, &[], &mut at, here, spacing * (k + 1) as f32).point);
@@ -130,7 +140,7 @@ mod tests {
         let l = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 2.0)];
         let pose = Pose2::new(0.0, 0.0, std::f32::consts::FRAC_PI_2);
         let mut out = [Vec2::ZERO; 4];
-        points_ahead(&l, 0, &pose, 0.5, &mut out);
+        points_ahead(&l, 0, Vec2::new(9.0, 9.0), &pose, 0.5, &mut out);
         // World (0.5, 0), (1, 0), (1, 0.5), (1, 1) seen facing +y: x' = y, y' = -x.
         let want = [(0.0, -0.5), (0.0, -1.0), (0.5, -1.0), (1.0, -1.0)];
         for (o, w) in out.iter().zip(want) {
@@ -138,7 +148,10 @@ mod tests {
         }
         // Past the end: the end.
         let mut far = [Vec2::ZERO; 2];
-        points_ahead(&l, 0, &Pose2::new(1.0, 1.5, 0.0), 1.0, &mut far);
+        points_ahead(&l, 0, Vec2::new(9.0, 9.0), &Pose2::new(1.0, 1.5, 0.0), 1.0, &mut far);
         assert!(far.iter().all(|p| (*p - Vec2::new(0.0, 0.5)).length() < 1e-5), "{far:?}");
+        // Without a plan: the line to the goal, 2 m straight ahead here.
+        points_ahead(&[], 0, Vec2::new(2.0, 0.0), &Pose2::new(0.0, 0.0, 0.0), 1.5, &mut far);
+        assert_eq!(far, [Vec2::new(1.5, 0.0), Vec2::new(2.0, 0.0)]);
     }
 }

@@ -854,11 +854,8 @@ impl NavEnv {
         }
         let lidar_std = dr.obs_lidar_std;
         if let Some((_, spacing)) = self.setup.task.observation.plan_ahead() {
-            // The plan being followed, or the straight line to the goal.
-            let line = [self.drive.pose.position(), self.goal];
-            let (path, progress): (&[Vec2], usize) =
-                if self.plan.is_empty() { (&line, 0) } else { (&self.plan, self.plan_progress) };
-            crate::plan::points_ahead(path, progress, &self.drive.pose, spacing, &mut self.ahead);
+            let pose = &self.drive.pose;
+            crate::plan::points_ahead(&self.plan, self.plan_progress, self.goal, pose, spacing, &mut self.ahead);
         }
         let inputs = ObservationInputs {
             ranges: &self.ranges,

@@ -142,12 +142,12 @@ impl VecEnv {
 
     /// Mean difficulty of the environments' levels in [0, 1] (`None` without levels).
     pub fn mean_difficulty(&self) -> Option<f32> {
-        let levels: Vec<f32> = self
+        let (sum, n) = self
             .envs
             .iter()
             .filter_map(|e| e.level().map(|l| l as f32 / (e.setup().levels.len() - 1).max(1) as f32))
-            .collect();
-        (!levels.is_empty()).then(|| levels.iter().sum::<f32>() / levels.len() as f32)
+            .fold((0.0, 0usize), |(s, n), d| (s + d, n + 1));
+        (n > 0).then(|| sum / n as f32)
     }
 
     /// Steps every environment with its normalised action (`actions.len() == len()`),

@@ -12,6 +12,7 @@
 //! Work is split into chunks of [`CHUNK`] rows that run in parallel, and their gradients are
 //! summed in chunk order, so a seed gives the same run for any thread count on one machine.
 
+use crate::ppo::{HALF_LN_2PI, SOFT_BOUND, to_vec};
 use burn::module::Param;
 use burn::prelude::*;
 use rayon::prelude::*;
@@ -19,10 +20,6 @@ use rlnav_policy::{ActivationKind, ActorCritic};
 
 /// Rows per parallel chunk.
 const CHUNK: usize = 256;
-/// `0.5 * ln(2π)`.
-const HALF_LN_2PI: f32 = 0.918_938_5;
-/// Action means beyond this are penalised by the bounds loss (as in `ppo.rs`).
-const SOFT_BOUND: f32 = 1.1;
 
 /// A dense layer: offsets of its weight (`[in][out]`, burn's layout) and bias in the flat
 /// parameter buffer.
@@ -147,10 +144,6 @@ pub struct FastMlp {
     pool: rayon::ThreadPool,
 }
 
-fn read<const D: usize>(p: &Param<Tensor<D>>) -> Vec<f32> {
-    p.val().into_data().try_to_vec::<f32>().expect("float parameter")
-}
-
 /// `c[m×n] = beta·c + a·b`, `a` being `m×k` and `b` `k×n`, each given with its row and column
 /// strides.
 #[allow(clippy::too_many_arguments)]
@@ -203,10 +196,10 @@ impl FastMlp {
         let mut push = |l: &burn::nn::Linear| {
             let [inp, out] = l.weight.val().dims();
             let w = params.len();
-            params.extend(read(&l.weight));
+            params.extend(to_vec(l.weight.val()));
             let b = params.len();
             match &l.bias {
-                Some(bias) => params.extend(read(bias)),
+                Some(bias) => params.extend(to_vec(bias.val())),
                 None => params.extend(std::iter::repeat_n(0.0, out)),
             }
             Dense { w, b, inp, out }
@@ -216,7 +209,7 @@ impl FastMlp {
         let critic: Vec<Dense> = model.critic.iter().map(&mut push).collect();
         let value = push(&model.value);
         let log_std = params.len();
-        params.extend(read(&model.log_std));
+        params.extend(to_vec(model.log_std.val()));
         let n = params.len();
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("learner threads");
         Some(Self {
@@ -363,8 +356,9 @@ impl FastMlp {
         (mu, v)
     }
 
-    /// Adds the gradient of a trunk plus head into `g`, given the head's output gradient `dy`.
-    /// Returns nothing for the input (observations need no gradient).
+    /// Adds a trunk's weight and bias gradients into `g`, given the gradient `dh` of its last
+    /// hidden layer's output (activations `hs`, the input first); the input's own gradient is
+    /// not computed (observations need none).
     fn backward_trunk(&self, layers: &[Dense], hs: &[Vec<f32>], mut dh: Vec<f32>, rows: usize, g: &mut [f32]) {
         for (i, &d) in layers.iter().enumerate().rev() {
             self.activate_backward(&hs[i + 1], &mut dh);

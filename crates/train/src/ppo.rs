@@ -23,9 +23,9 @@ use rlnav_sim::vec_env::VecEnv;
 pub type RecurrentState = (Vec<f32>, Vec<f32>);
 
 /// `0.5 * ln(2π)`.
-const HALF_LN_2PI: f32 = 0.918_938_5;
+pub(crate) const HALF_LN_2PI: f32 = 0.918_938_5;
 /// Action means beyond this are penalised by the bounds loss (rl_games' soft bound).
-const SOFT_BOUND: f32 = 1.1;
+pub(crate) const SOFT_BOUND: f32 = 1.1;
 
 /// What one update measured (means over minibatches).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -105,7 +105,7 @@ fn tensor1(data: Vec<f32>, device: &Device) -> Tensor<1> {
     Tensor::from_data(TensorData::new(data, [n]), device)
 }
 
-fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+pub(crate) fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
     t.into_data().try_to_vec::<f32>().expect("float tensor")
 }
 
@@ -420,6 +420,13 @@ impl Ppo {
         }
         let old_log_std: Vec<f32> = to_vec(self.model().log_std.val());
         let mb_items = self.cfg.minibatch_size / seq;
+        let loss_cfg = LossConfig {
+            e_clip: self.cfg.e_clip,
+            clip_value: self.cfg.clip_value,
+            critic_coef: self.cfg.critic_coef,
+            entropy_coef: self.cfg.entropy_coef,
+            bounds_loss_coef: self.cfg.bounds_loss_coef,
+        };
         let mut stats = UpdateStats::default();
         let mut count = 0.0f32;
         for _ in 0..self.cfg.mini_epochs {
@@ -464,13 +471,6 @@ impl Ppo {
                     let inv = 1.0 / (var.sqrt() + 1e-8);
                     adv.iter_mut().for_each(|x| *x = (*x - mean) * inv);
                 }
-                let loss_cfg = LossConfig {
-                    e_clip: self.cfg.e_clip,
-                    clip_value: self.cfg.clip_value,
-                    critic_coef: self.cfg.critic_coef,
-                    entropy_coef: self.cfg.entropy_coef,
-                    bounds_loss_coef: self.cfg.bounds_loss_coef,
-                };
                 let (lr, max_norm) = (self.lr, self.cfg.grad_norm);
                 let (new_mu, new_ls, ratios, losses) = if let Some(fast) = self.fast.as_mut() {
                     let ls = fast.log_std().to_vec();

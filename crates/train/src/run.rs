@@ -198,26 +198,32 @@ fn stages(cfg: &RunConfig) -> Vec<StageConfig> {
     }
 }
 
-/// The scenario set up for each of the run's robots (`robots`, or `robot` alone).
-fn env_setup(cfg: &RunConfig, scenario: &str, task: TaskConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
+/// The scenario set up for each of the run's robots (`robots`, or `robot` alone), with
+/// `levels` difficulty levels when given.
+fn env_setup(
+    cfg: &RunConfig,
+    scenario: &str,
+    task: TaskConfig,
+    levels: Option<usize>,
+) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
     let spec = ScenarioSpec::load(scenario)?;
     let names = if cfg.robots.is_empty() { std::slice::from_ref(&cfg.robot) } else { cfg.robots.as_slice() };
-    names.iter().map(|r| Ok(Arc::new(EnvSetup::new(spec.clone(), RobotSpec::load(r)?, task.clone())?))).collect()
+    names
+        .iter()
+        .map(|r| {
+            let setup = EnvSetup::new(spec.clone(), RobotSpec::load(r)?, task.clone())?;
+            Ok(Arc::new(match levels {
+                Some(n) => setup.with_difficulty_levels(n)?,
+                None => setup,
+            }))
+        })
+        .collect()
 }
 
 /// A training stage's setups, with difficulty levels under an automatic curriculum.
 fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
-    let setups = env_setup(cfg, &stage.scenario, apply_task_overrides(&cfg.task, &stage.task, &stage.name)?)?;
-    match &cfg.auto_curriculum {
-        None => Ok(setups),
-        Some(a) => setups
-            .into_iter()
-            .map(|s| {
-                let s = Arc::into_inner(s).expect("a setup just built has one owner");
-                Ok(Arc::new(s.with_difficulty_levels(a.levels)?))
-            })
-            .collect(),
-    }
+    let task = apply_task_overrides(&cfg.task, &stage.task, &stage.name)?;
+    env_setup(cfg, &stage.scenario, task, cfg.auto_curriculum.as_ref().map(|a| a.levels))
 }
 
 /// The hand-written learner's Adam state in a checkpoint (burn's learner writes `optimizer.bpk`).
@@ -481,9 +487,9 @@ pub fn train(
             ),
         }));
     }
-    let eval = env_setup(cfg, &cfg.eval.scenario, cfg.task.clone())?;
+    let eval = env_setup(cfg, &cfg.eval.scenario, cfg.task.clone(), None)?;
     let heldout =
-        cfg.eval.heldout.iter().map(|s| env_setup(cfg, s, cfg.task.clone())).collect::<Result<Vec<_>, _>>()?;
+        cfg.eval.heldout.iter().map(|s| env_setup(cfg, s, cfg.task.clone(), None)).collect::<Result<Vec<_>, _>>()?;
     // Every held-out scenario, one episode per environment (no bias to short episodes), pooled.
     let eval_heldout = |ppo: &Ppo, seed: u64| -> Result<Option<EvalSummary>, TrainError> {
         if heldout.is_empty() {
@@ -783,7 +789,7 @@ pub fn evaluate_run(
 ) -> Result<RunEvaluation, TrainError> {
     let (cfg, ppo) = load_learner(dir, "checkpoint")?;
     let scenario = scenario.unwrap_or(&cfg.eval.scenario).to_string();
-    let setup = env_setup(&cfg, &scenario, cfg.task.clone())?;
+    let setup = env_setup(&cfg, &scenario, cfg.task.clone(), None)?;
     let envs = envs.clamp(1, episodes.max(1));
     let episodes = episodes / envs * envs;
     let (summary, episodes) = evaluate(&ppo, &setup, episodes, envs, seed, cfg.train.threads, &mut |n| progress(n))?;
