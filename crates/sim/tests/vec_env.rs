@@ -200,6 +200,7 @@ fn difficulty_levels_scale_the_rooms_and_follow_outcomes() {
         }
         mean.push(n as f32 / 30.0);
     }
+    // Measured over seeds 1-8: 8.0, 10.3-11.4, 11.9-13.0 obstacles (walls included).
     assert!(mean[0] < mean[1] && mean[1] < mean[2], "obstacles per room by level: {mean:?}");
 
     // Success goes up, failure down (not below 0); success on the top level goes anywhere.
@@ -223,5 +224,7 @@ fn difficulty_levels_scale_the_rooms_and_follow_outcomes() {
         venv.step(&[[1.0f32, 0.0]; 8]).unwrap();
     }
     let after = venv.mean_difficulty().unwrap();
-    assert!(after < start.max(0.01), "collisions lower the levels: {start} -> {after}");
+    // Measured over seeds 1-8: from 0.19-0.75 down to 0-0.125 (a robot that meets its goal
+    // straight ahead goes up a level).
+    assert!(start > 0.0 && after < start, "collisions lower the levels: {start} -> {after}");
 }
