@@ -302,8 +302,9 @@ impl Scene<'_> {
         area.draw(&PathElement::new(vec![pt(pose.position()), pt(tip)], BLACK.stroke_width(2)))
     }
 
-    /// Draws one frame (with the trail of `history`) into an RGB buffer.
-    fn raster(&self, frame: &Frame, history: &[Frame], style: &Style) -> Result<RgbImage, String> {
+    /// Draws one frame (with the trail of `history`) into an RGB buffer (what `.png` files
+    /// hold, and the Python API's `render()` returns).
+    pub fn raster(&self, frame: &Frame, history: &[Frame], style: &Style) -> Result<RgbImage, String> {
         let (w, h) = self.pixels(style);
         let mut buf = vec![0u8; (w * h * 3) as usize];
         {

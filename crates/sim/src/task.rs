@@ -498,9 +498,20 @@ impl EnvSetup {
 
     /// Loads the scenario (preset or file) with its own robot and the default task.
     pub fn from_scenario_name(name: &str) -> Result<Self, SimError> {
-        let spec = ScenarioSpec::load(name)?;
-        let robot = RobotSpec::load(&spec.robot)?;
-        Self::new(spec, robot, TaskConfig::default())
+        Self::load(name, None, None)
+    }
+
+    /// Loads a scenario (preset or file), a robot (preset or file; default: the scenario's)
+    /// and a task file (default: [`TaskConfig::default`]), and checks that they fit together:
+    /// what the CLI's `--scenario/--robot/--task` and the Python API take.
+    pub fn load(scenario: &str, robot: Option<&str>, task: Option<&Path>) -> Result<Self, SimError> {
+        let spec = ScenarioSpec::load(scenario)?;
+        let robot = RobotSpec::load(robot.unwrap_or(&spec.robot))?;
+        let task = match task {
+            Some(p) => TaskConfig::from_file(p)?,
+            None => TaskConfig::default(),
+        };
+        Self::new(spec, robot, task)
     }
 
     /// Length of the observation vector.

@@ -129,8 +129,15 @@ impl VecEnv {
             assert!(!env.setup().levels.is_empty(), "difficulty levels are built for every setup");
             env.set_level(Some(rng.random_range(0..=start_max)));
         }
+        self.reset_all()
+    }
+
+    /// Starts a new episode in every environment (each from its own random stream, which
+    /// goes on where it was) and writes the observations.
+    pub fn reset_all(&mut self) -> Result<(), SimError> {
         let d = self.obs_dim;
-        let Self { envs, pool, obs, .. } = self;
+        let Self { envs, pool, obs, finished, .. } = self;
+        finished.iter_mut().for_each(|f| *f = None);
         pool.install(|| {
             envs.par_iter_mut().zip(obs.par_chunks_mut(d)).try_for_each(|(env, o)| {
                 env.reset()?;

@@ -38,13 +38,7 @@ pub struct EnvArgs {
 impl EnvArgs {
     /// Loads the three and checks that they fit together.
     pub fn setup(&self) -> Result<Arc<EnvSetup>> {
-        let scenario = ScenarioSpec::load(&self.scenario)?;
-        let robot = RobotSpec::load(self.robot.as_deref().unwrap_or(&scenario.robot))?;
-        let task = match &self.task {
-            Some(p) => TaskConfig::from_file(p)?,
-            None => TaskConfig::default(),
-        };
-        Ok(Arc::new(EnvSetup::new(scenario, robot, task)?))
+        Ok(Arc::new(EnvSetup::load(&self.scenario, self.robot.as_deref(), self.task.as_deref())?))
     }
 }
 
