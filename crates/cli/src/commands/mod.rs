@@ -14,9 +14,7 @@ pub mod sim_speed;
 pub mod train;
 
 use anyhow::{Context, Result};
-use rlnav_sim::RobotSpec;
-use rlnav_sim::scenario::ScenarioSpec;
-use rlnav_sim::task::{EnvSetup, TaskConfig};
+use rlnav_sim::task::EnvSetup;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
