@@ -18,9 +18,8 @@ class Sb3VecEnv(VecEnv):
     figures."""
 
     def __init__(self, venv: RlnavVectorEnv):
-        self.render_mode = venv.render_mode
+        self.venv = venv  # before the base class, which asks it for render_mode
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
-        self.venv = venv
         self._actions: np.ndarray | None = None
         self._next_seed: int | None = None
 
