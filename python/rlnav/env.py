@@ -8,8 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ._rlnav import VecSim
-from .vector import _spaces, episode_info
+from .vector import RlnavVectorEnv
 
 
 class RlnavEnv(gym.Env):
@@ -17,7 +16,10 @@ class RlnavEnv(gym.Env):
     velocities, as the task's ``observation`` lists), the action the normalised (linear,
     angular) command in [-1, 1]. ``terminated``: goal reached or collision; ``truncated``:
     the task's time limit. At an episode's end ``info`` holds its figures (``outcome``,
-    ``is_success``, ``min_range``, ``path_length``...)."""
+    ``is_success``, ``min_range``, ``path_length``...).
+
+    It is a batch of one (:class:`rlnav.RlnavVectorEnv`) that shows the ended episode's last
+    observation instead of the next episode's first, which ``reset()`` then begins."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
@@ -32,41 +34,30 @@ class RlnavEnv(gym.Env):
     ):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
-        task = os.fspath(task) if task is not None else None
-        self.sim = VecSim(os.fspath(scenario), robot, task, 1, int(seed), 1)
+        self.batch = RlnavVectorEnv(scenario, robot, task, num_envs=1, seed=seed, threads=1)
         self.render_mode = render_mode
         self.render_size = int(render_size)
-        self.description = self.sim.describe()
-        self.observation_space, self.action_space = _spaces(self.sim)
-        d = self.sim.obs_dim
-        self._obs = np.zeros((1, d), dtype=np.float32)
-        self._final_obs = np.zeros((1, d), dtype=np.float32)
-        self._reward = np.zeros(1, dtype=np.float32)
-        self._terminated = np.zeros(1, dtype=np.bool_)
-        self._truncated = np.zeros(1, dtype=np.bool_)
+        self.description = self.batch.description
+        self.observation_space = self.batch.single_observation_space
+        self.action_space = self.batch.single_action_space
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        self.sim.reset(self._obs, None if seed is None else int(seed))
-        return self._obs[0].copy(), {}
+        obs, _ = self.batch.reset(seed=seed)
+        return obs[0], {}
 
     def step(self, action):
-        a = np.ascontiguousarray(action, dtype=np.float32).reshape(1, 2)
-        done = self.sim.step(a, self._obs, self._reward, self._terminated, self._truncated, self._final_obs)
-        info: dict[str, Any] = {}
-        obs = self._obs[0]
-        if done:
-            # The simulator has already begun the next episode; a single env shows the end of
-            # this one and begins the next at reset().
-            obs = self._final_obs[0]
-            info = episode_info(done[0][1])
-        return obs.copy(), float(self._reward[0]), bool(self._terminated[0]), bool(self._truncated[0]), info
+        obs, reward, terminated, truncated, infos = self.batch.step(np.asarray(action, dtype=np.float32)[None])
+        if not infos:
+            return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), {}
+        info = {k: v[0] for k, v in infos["final_info"].items() if not k.startswith("_")}
+        return infos["final_obs"][0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
 
     def render(self):
         """The scene as ``uint8[h, w, 3]`` (with ``render_mode="rgb_array"``)."""
         if self.render_mode != "rgb_array":
             return None
-        return self.sim.render(0, self.render_size)
+        return self.batch.sim.render(0, self.render_size)
 
 
 def make(

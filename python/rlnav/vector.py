@@ -80,9 +80,9 @@ class RlnavVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Starts a new episode everywhere; ``seed`` rebuilds the environments from it."""
-        super().reset(seed=seed)
         if isinstance(seed, (list, tuple)):
             raise ValueError("seed: expected one int for the batch (environment i is seeded from it and i)")
+        super().reset(seed=seed)
         self.sim.reset(self._obs, None if seed is None else int(seed))
         self._started = True
         return self._out(self._obs), {}

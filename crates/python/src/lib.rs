@@ -37,7 +37,6 @@ fn json_to_py<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
 pub struct VecSim {
     setup: Arc<EnvSetup>,
     venv: VecEnv,
-    threads: usize,
     actions: Vec<[f32; 2]>,
 }
 
@@ -89,7 +88,7 @@ impl VecSim {
         let setup = Arc::new(EnvSetup::load(scenario, robot, task.map(Path::new)).map_err(err)?);
         let s = setup.clone();
         let venv = py.detach(move || VecEnv::new(s, num_envs, seed, threads)).map_err(err)?;
-        Ok(Self { setup, venv, threads, actions: vec![[0.0; 2]; num_envs] })
+        Ok(Self { setup, venv, actions: vec![[0.0; 2]; num_envs] })
     }
 
     /// Number of environments.
@@ -145,7 +144,7 @@ impl VecSim {
     /// it (the same seed gives the same episodes); without, each goes on with its stream.
     #[pyo3(signature = (obs, seed=None))]
     fn reset(&mut self, py: Python<'_>, mut obs: PyReadwriteArray2<f32>, seed: Option<u64>) -> PyResult<()> {
-        let (setup, n, threads) = (self.setup.clone(), self.venv.len(), self.threads);
+        let (setup, n, threads) = (self.setup.clone(), self.venv.len(), self.venv.threads());
         let venv = &mut self.venv;
         py.detach(move || match seed {
             Some(seed) => VecEnv::new(setup, n, seed, threads).map(|v| *venv = v),

@@ -1,5 +1,5 @@
 //! The Python package's tests (python/tests), run by pytest in a Python where the package is
-//! installed: `RLNAV_PYAPI_PYTHON` names it (CI makes the venv: `pip install "./python[sb3,test]"`).
+//! installed: `RLNAV_PYAPI_PYTHON` names it (CI makes the venv: the package with Stable-Baselines3, PyTorch, Ray and pytest).
 //! Without it they are skipped here, except under CI, where that is a failure.
 
 use std::path::Path;
