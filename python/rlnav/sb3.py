@@ -81,3 +81,16 @@ class Sb3VecEnv(VecEnv):
 
     def get_images(self):
         return [self.venv.sim.render(i) for i in range(self.num_envs)]
+
+
+def policy_fn(model: Any, vec_normalize: Any = None):
+    """A callable for :func:`rlnav.evaluate`: ``model``'s deterministic action for raw
+    observations, normalised first by ``vec_normalize`` (the ``VecNormalize`` it trained
+    under) when given."""
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        if vec_normalize is not None:
+            obs = vec_normalize.normalize_obs(obs)
+        return model.predict(obs, deterministic=True)[0]
+
+    return act

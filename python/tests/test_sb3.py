@@ -1,5 +1,6 @@
 """Learning from Python: Stable-Baselines3's PPO on the Rust batch learns empty-room and
-reaches goals on episodes it never trained on (a fresh seed)."""
+reaches goals on episodes it never trained on (a fresh seed), evaluated by ``rlnav.evaluate``
+beside DWA, and its export drives as it does."""
 
 import numpy as np
 
@@ -18,7 +19,7 @@ def test_sb3_ppo_learns_empty_room(tmp_path):
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from rlnav.sb3 import Sb3VecEnv
+    from rlnav.sb3 import Sb3VecEnv, policy_fn
 
     torch.set_num_threads(1)
     # rlnav's own runs weight progress by 10 (configs/static-mlp.yaml); so does this one.
@@ -33,18 +34,25 @@ def test_sb3_ppo_learns_empty_room(tmp_path):
     model.learn(total_timesteps=STEPS)
     assert np.all(np.isfinite(train.obs_rms.mean))
 
-    # 50 episodes of scenes no training env drew (another seed), the first episode of each env.
+    # 50 episodes of scenes no training env drew (another seed), DWA beside it; then the
+    # policy exported with its normalisation, driven by the Rust runtime that bench and the
+    # ROS 2 node use.
     train.training = False
-    test = rlnav.make_vec("empty-room", task=task, num_envs=50, seed=1000, threads=1)
-    obs, _ = test.reset(seed=1000)
-    outcome = [None] * test.num_envs
-    while any(o is None for o in outcome):
-        action, _ = model.predict(train.normalize_obs(obs), deterministic=True)
-        obs, _, _, _, info = test.step(action)
-        if info:
-            for i in np.flatnonzero(info["_final_info"]):
-                if outcome[i] is None:
-                    outcome[i] = info["final_info"]["outcome"][i]
-    rate = outcome.count("success") / len(outcome)
-    print(f"SB3 PPO, {STEPS} steps: success {rate:.2f} on 50 unseen episodes ({outcome.count('collision')} collisions)")
-    assert rate >= SUCCESS, outcome
+    onnx = tmp_path / "sb3.onnx"
+    rlnav.export.export_sb3(model, onnx, robot="jetbot", task=task, vec_normalize=train)
+    policy = policy_fn(model, train)
+    report = rlnav.evaluate(
+        policy, scenario="empty-room", task=task, episodes=50, seed=1000, baselines=["dwa", f"rl:{onnx}"]
+    )
+    print(report.markdown)
+    rate = report.success_rate("python")
+    print(f"SB3 PPO, {STEPS} steps: success {rate:.2f} on 50 unseen episodes, DWA {report.success_rate('dwa'):.2f}")
+    assert rate >= SUCCESS, report.markdown
+    # The exported file acts as the SB3 policy does (before SB3 clips to the action space).
+    obs = np.random.default_rng(0).uniform(0.2, 3.0, (64, train.observation_space.shape[0])).astype(np.float32)
+    with torch.no_grad():
+        x = torch.as_tensor(train.normalize_obs(obs), dtype=torch.float32)
+        mu = model.policy.action_net(model.policy.mlp_extractor.forward_actor(x)).numpy()
+    assert np.abs(rlnav.OnnxPolicy(str(onnx))(obs) - mu).max() < 1e-4
+    onnx_rate = report.success_rate(f"rl:{onnx}")
+    assert abs(onnx_rate - rate) <= 0.04, report.markdown

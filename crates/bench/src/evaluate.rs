@@ -35,6 +35,10 @@ impl EpisodeTrace {
     }
 }
 
+/// A controller's run through a scenario's episodes: the summary, every episode's figures
+/// and its trace.
+pub type EvalRun = (EvalSummary, Vec<EpisodeStats>, Vec<EpisodeTrace>);
+
 /// Runs the environment's current episode to its end under `c`, tracing it.
 pub fn traced_episode(env: &mut NavEnv, c: &mut dyn Controller) -> (EpisodeStats, EpisodeTrace) {
     let period = env.setup().task.control_period;
@@ -56,7 +60,7 @@ pub fn evaluate_controller<E: std::fmt::Display + Send>(
     threads: usize,
     record: Option<&std::path::Path>,
     progress: &(dyn Fn(usize) + Sync),
-) -> Result<(EvalSummary, Vec<EpisodeStats>, Vec<EpisodeTrace>), String> {
+) -> Result<EvalRun, String> {
     let finished = AtomicUsize::new(0);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("thread pool: {e}"))?;
     let runs: Result<Vec<(EpisodeStats, EpisodeTrace)>, String> = pool.install(|| {

@@ -1,6 +1,8 @@
 //! `rlnav-bench`: running any [`Controller`](rlnav_sim::Controller) through episodes and
 //! showing what happened.
 //!
+//! - [`batch`]: a policy acting for many episodes at once (a network in Python) on the same
+//!   seeded episodes;
 //! - [`controllers`]: controllers by name (`greedy`, `straight`);
 //! - [`episode`]: one episode run and recorded frame by frame;
 //! - [`evaluate`]: a controller through seeded episodes in parallel, with the summary figures;
@@ -11,6 +13,7 @@
 //! - [`record`]: episodes as MCAP recordings of ROS 2 messages;
 //! - [`render`]: pictures of a scene or an episode (PNG, SVG) and animations (GIF).
 
+pub mod batch;
 pub mod controllers;
 pub mod episode;
 pub mod evaluate;

@@ -1,8 +1,9 @@
 //! Scenario suites: named lists of scenarios run together (`suites/`, embedded), and running
 //! several controllers through all of them on the same seeded episodes.
 
+use crate::batch::{BatchPolicy, evaluate_batch};
 use crate::controllers::{check, for_setup};
-use crate::evaluate::{EvalSummary, evaluate_controller};
+use crate::evaluate::{EvalRun, EvalSummary, evaluate_controller};
 use rlnav_sim::barn::barn_score;
 use rlnav_sim::config::{ConfigError, Invalid, Validate, preset_or_file};
 use rlnav_sim::task::{EnvSetup, SimError, TaskConfig};
@@ -152,22 +153,27 @@ pub struct SuiteResult {
 /// then its BARN worlds under the challenge's rules (1 m success radius, the time limit, a
 /// collision is contact), in the order [`run_suite`] runs them.
 pub fn suite_setups(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<Arc<EnvSetup>>, BenchError> {
-    Ok(suite_setups_scored(suite, robot)?.into_iter().map(|(s, _)| s).collect())
+    Ok(suite_setups_scored(suite, robot, &TaskConfig::default())?.into_iter().map(|(s, _)| s).collect())
 }
 
 /// A scenario compiled for the run, with its BARN optimal time when it is a BARN world.
 type ScoredSetup = (Arc<EnvSetup>, Option<f32>);
 
-fn suite_setups_scored(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<ScoredSetup>, BenchError> {
+/// As [`suite_setups`], with `base` in place of the default task (BARN's rules on top).
+fn suite_setups_scored(
+    suite: &SuiteSpec,
+    robot: Option<&str>,
+    base: &TaskConfig,
+) -> Result<Vec<ScoredSetup>, BenchError> {
     let mut setups = Vec::new();
     for name in &suite.scenarios {
         let spec = ScenarioSpec::load(name)?;
         let robot = RobotSpec::load(robot.unwrap_or(&spec.robot))?;
-        setups.push((Arc::new(EnvSetup::new(spec, robot, TaskConfig::default())?), None));
+        setups.push((Arc::new(EnvSetup::new(spec, robot, base.clone())?), None));
     }
     if let Some(b) = &suite.barn {
         let set = rlnav_sim::barn::BarnSet::load_named(&b.file)?;
-        let base = TaskConfig::default();
+        let base = base.clone();
         let task = TaskConfig {
             goal_tolerance: set.success_radius,
             max_steps: (set.time_limit / base.control_period).round() as u32,
@@ -203,6 +209,18 @@ impl Default for RunOptions<'_> {
     }
 }
 
+/// A policy given as a batch callable rather than by name (a network in Python), run beside
+/// the named controllers on the same episodes.
+pub struct BatchEntry<'a> {
+    /// Its name in the tables.
+    pub name: &'a str,
+    /// The task it was trained with: its observation, action ranges, control period and plan
+    /// are used; the rest (time limit, goal tolerance, collision range) is the suite's.
+    pub task: &'a TaskConfig,
+    /// The policy.
+    pub policy: &'a mut dyn BatchPolicy,
+}
+
 /// Runs every controller on every scenario of `suite` with the same seeded episodes each.
 /// Controllers, scenarios and policy contracts are all checked before the first episode.
 /// `progress(done, total)` is called as each (scenario, controller) pair finishes.
@@ -212,11 +230,23 @@ pub fn run_suite(
     opts: &RunOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<SuiteResult, BenchError> {
+    run_suite_with(suite, None, controllers, opts, progress)
+}
+
+/// [`run_suite`] with a batch policy first on each scenario (all its episodes in lockstep,
+/// [`evaluate_batch`]; not recorded), then the named controllers.
+pub fn run_suite_with(
+    suite: &SuiteSpec,
+    mut batch: Option<BatchEntry>,
+    controllers: &[String],
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<SuiteResult, BenchError> {
     let RunOptions { robot, episodes, seed, threads, record } = *opts;
-    if controllers.is_empty() {
+    if controllers.is_empty() && batch.is_none() {
         return Err(BenchError::NoControllers);
     }
-    let setups = suite_setups_scored(suite, robot)?;
+    let setups = suite_setups_scored(suite, robot, &TaskConfig::default())?;
     let bad = |name: &str, message: &str| BenchError::Controller { name: name.into(), message: message.into() };
     let mut warnings = Vec::new();
     for c in controllers {
@@ -230,13 +260,49 @@ pub fn run_suite(
             }
         }
     }
+    let total = setups.len() * (controllers.len() + usize::from(batch.is_some()));
+    // The batch policy's scenes under its own observation, action and control period.
+    let mut batch_runs = match &mut batch {
+        Some(b) => {
+            let base = TaskConfig {
+                physics_dt: b.task.physics_dt,
+                control_period: b.task.control_period,
+                action: b.task.action.clone(),
+                observation: b.task.observation.clone(),
+                plan: b.task.plan.clone(),
+                ..TaskConfig::default()
+            };
+            let own: Vec<Arc<EnvSetup>> =
+                suite_setups_scored(suite, robot, &base)?.into_iter().map(|(s, _)| s).collect();
+            let runs = evaluate_batch(&own, episodes, seed, threads, b.policy).map_err(|e| bad(b.name, &e))?;
+            runs.into_iter().map(Some).collect()
+        }
+        None => vec![None; setups.len()],
+    };
+    let mut done = if batch.is_some() { setups.len() } else { 0 };
+    if done > 0 {
+        progress(done, total);
+    }
     let mut cells = Vec::new();
-    let total = setups.len() * controllers.len();
-    for (setup, optimal) in &setups {
+    for ((setup, optimal), own) in setups.iter().zip(&mut batch_runs) {
+        let cell = |controller: &str, (summary, eps, traces): EvalRun| CellResult {
+            scenario: setup.scenario.spec().name.clone(),
+            controller: controller.to_string(),
+            summary,
+            barn_score: optimal.map(|o| {
+                let n = eps.len().max(1) as f32;
+                eps.iter().map(|e| barn_score(e.outcome == rlnav_sim::Outcome::Success, e.time, o)).sum::<f32>() / n
+            }),
+            episodes: eps,
+            traces,
+        };
+        if let (Some(run), Some(b)) = (own.take(), &batch) {
+            cells.push(cell(b.name, run));
+        }
         for c in controllers {
             let name = &setup.scenario.spec().name;
             let dir = record.map(|d| d.join(crate::plots::slug(name)).join(crate::plots::slug(c)));
-            let (summary, eps, traces) = evaluate_controller(
+            let run = evaluate_controller(
                 setup.clone(),
                 || for_setup(c, setup),
                 episodes,
@@ -246,18 +312,9 @@ pub fn run_suite(
                 &|_| {},
             )
             .map_err(BenchError::Run)?;
-            cells.push(CellResult {
-                scenario: setup.scenario.spec().name.clone(),
-                controller: c.clone(),
-                summary,
-                barn_score: optimal.map(|o| {
-                    let n = eps.len().max(1) as f32;
-                    eps.iter().map(|e| barn_score(e.outcome == rlnav_sim::Outcome::Success, e.time, o)).sum::<f32>() / n
-                }),
-                episodes: eps,
-                traces,
-            });
-            progress(cells.len(), total);
+            cells.push(cell(c, run));
+            done += 1;
+            progress(done, total);
         }
     }
     Ok(SuiteResult { suite: suite.name.clone(), robot: setups[0].0.robot.name.clone(), seed, cells, warnings })

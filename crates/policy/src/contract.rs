@@ -280,6 +280,41 @@ impl Validate for PolicyContract {
 }
 
 impl PolicyContract {
+    /// The contract of a policy trained on `task` with `robot`, named `name`: the task's
+    /// observation, action and plan, the robot's scan in `base_link` orientation, feed-forward
+    /// graph names (`obs` → `mu`) or rlnav's LSTM names when `io` says so.
+    pub fn for_task(
+        name: &str,
+        task: &rlnav_sim::TaskConfig,
+        robot: &rlnav_sim::RobotSpec,
+        io: GraphIo,
+        envelope: Option<RobotEnvelope>,
+    ) -> Self {
+        let mut scan = ScanContract::of(&robot.lidar);
+        // The contract's beams are in base_link orientation; the simulated lidar's own start
+        // angle is relative to its mount.
+        scan.angle_min += robot.lidar.mount.yaw;
+        scan.angle_max += robot.lidar.mount.yaw;
+        Self {
+            format: CONTRACT_FORMAT,
+            producer: format!("rlnav {}", env!("CARGO_PKG_VERSION")),
+            task: name.to_string(),
+            robot: robot.name.clone(),
+            observation: task.observation.clone(),
+            scan,
+            action: ActionContract {
+                scaling: ActionScaling::Normalized,
+                linear: task.action.linear,
+                angular: task.action.angular,
+            },
+            control_period: task.control_period,
+            goal_tolerance: task.goal_tolerance,
+            io,
+            plan: task.plan.clone(),
+            envelope,
+        }
+    }
+
     /// Length of the observation vector.
     pub fn obs_dim(&self) -> usize {
         self.observation.len()

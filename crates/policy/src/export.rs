@@ -91,9 +91,68 @@ impl Graph {
 
     fn gemm(&mut self, x: &str, l: &Linear, prefix: &str, out: Option<&str>) -> String {
         let (w, dims, b) = linear_parts(l);
+        self.gemm_raw(x, w, dims, b, prefix, out)
+    }
+
+    /// `x · w + b` with `w` `[inputs, outputs]`, row-major.
+    fn gemm_raw(
+        &mut self,
+        x: &str,
+        w: Vec<f32>,
+        dims: [usize; 2],
+        b: Vec<f32>,
+        prefix: &str,
+        out: Option<&str>,
+    ) -> String {
         let w = self.tensor(&format!("{prefix}.weight"), &dims, w);
         let b = self.tensor(&format!("{prefix}.bias"), &[dims[1]], b);
         self.node("Gemm", &[x, &w, &b], out.as_slice(), Vec::new())
+    }
+
+    /// The observation normaliser in front of the network: `clip(obs * scale + shift)`, the
+    /// same arithmetic as [`RunningMeanStd::normalize`].
+    fn normalizer(&mut self, scale: Vec<f32>, shift: Vec<f32>, clip: f32) -> String {
+        let n = scale.len();
+        let scale = self.tensor("obs_norm.scale", &[n], scale);
+        let shift = self.tensor("obs_norm.shift", &[n], shift);
+        let lo = self.tensor("obs_norm.clip_min", &[], vec![-clip]);
+        let hi = self.tensor("obs_norm.clip_max", &[], vec![clip]);
+        let x = self.node("Mul", &["obs", &scale], &[], Vec::new());
+        let x = self.node("Add", &[&x, &shift], &[], Vec::new());
+        self.node("Clip", &[&x, &lo, &hi], &[], Vec::new())
+    }
+
+    /// The finished model carrying `contract` in `metadata_props`.
+    fn model(
+        self,
+        contract: &PolicyContract,
+        inputs: Vec<pb::ValueInfoProto>,
+        outputs: Vec<pb::ValueInfoProto>,
+    ) -> pb::ModelProto {
+        let meta = [
+            (CONTRACT_KEY.to_string(), contract.to_yaml()),
+            ("rlnav.version".into(), env!("CARGO_PKG_VERSION").into()),
+            ("rlnav.robot".into(), contract.robot.clone()),
+            ("rlnav.task".into(), contract.task.clone()),
+            ("rlnav.obs_dim".into(), contract.obs_dim().to_string()),
+        ];
+        pb::ModelProto {
+            ir_version: 8,
+            opset_import: vec![pb::OperatorSetIdProto { domain: String::new(), version: OPSET }],
+            producer_name: "rlnav".into(),
+            producer_version: env!("CARGO_PKG_VERSION").into(),
+            doc_string: format!("rlnav policy for {} ({})", contract.robot, contract.task),
+            graph: Some(pb::GraphProto {
+                name: "rlnav_policy".into(),
+                node: self.nodes,
+                initializer: self.inits,
+                input: inputs,
+                output: outputs,
+                ..Default::default()
+            }),
+            metadata_props: meta.into_iter().map(|(key, value)| pb::StringStringEntryProto { key, value }).collect(),
+            ..Default::default()
+        }
     }
 
     fn activation(&mut self, x: &str, a: ActivationKind) -> String {
@@ -186,14 +245,7 @@ pub fn export_model(
     }
     let mut g = Graph { nodes: Vec::new(), inits: Vec::new(), count: 0 };
     let (scale, shift) = norm.affine();
-    // The same arithmetic as RunningMeanStd::normalize: x * scale + shift, clipped.
-    let scale = g.tensor("obs_norm.scale", &[n], scale);
-    let shift = g.tensor("obs_norm.shift", &[n], shift);
-    let lo = g.tensor("obs_norm.clip_min", &[], vec![-norm.clip]);
-    let hi = g.tensor("obs_norm.clip_max", &[], vec![norm.clip]);
-    let x = g.node("Mul", &["obs", &scale], &[], Vec::new());
-    let x = g.node("Add", &[&x, &shift], &[], Vec::new());
-    let mut features = g.node("Clip", &[&x, &lo, &hi], &[], Vec::new());
+    let mut features = g.normalizer(scale, shift, norm.clip);
 
     let mut inputs = vec![value_info("obs", &[None, Some(n)])];
     let mut outputs = Vec::new();
@@ -265,28 +317,7 @@ pub fn export_model(
         }
     }
 
-    let mut meta = vec![(CONTRACT_KEY.to_string(), contract.to_yaml())];
-    meta.push(("rlnav.version".into(), env!("CARGO_PKG_VERSION").into()));
-    meta.push(("rlnav.robot".into(), contract.robot.clone()));
-    meta.push(("rlnav.task".into(), contract.task.clone()));
-    meta.push(("rlnav.obs_dim".into(), n.to_string()));
-    Ok(pb::ModelProto {
-        ir_version: 8,
-        opset_import: vec![pb::OperatorSetIdProto { domain: String::new(), version: OPSET }],
-        producer_name: "rlnav".into(),
-        producer_version: env!("CARGO_PKG_VERSION").into(),
-        doc_string: format!("rlnav policy for {} ({})", contract.robot, contract.task),
-        graph: Some(pb::GraphProto {
-            name: "rlnav_policy".into(),
-            node: g.nodes,
-            initializer: g.inits,
-            input: inputs,
-            output: outputs,
-            ..Default::default()
-        }),
-        metadata_props: meta.into_iter().map(|(key, value)| pb::StringStringEntryProto { key, value }).collect(),
-        ..Default::default()
-    })
+    Ok(g.model(contract, inputs, outputs))
 }
 
 /// [`export_model`] encoded as ONNX bytes.
@@ -296,6 +327,122 @@ pub fn export_onnx(
     contract: &PolicyContract,
 ) -> Result<Vec<u8>, ExportError> {
     Ok(export_model(net, norm, contract)?.encode_to_vec())
+}
+
+/// One dense layer of a network given as plain weights (from PyTorch, say):
+/// `y = activation(x · weight + bias)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DenseLayer {
+    /// Weights `[inputs, outputs]`, row-major (PyTorch's `Linear.weight` transposed).
+    pub weight: Vec<f32>,
+    /// Input width.
+    pub inputs: usize,
+    /// Output width.
+    pub outputs: usize,
+    /// Bias, one per output.
+    pub bias: Vec<f32>,
+    /// Nonlinearity after the layer (`None`: linear, as the last layer).
+    pub activation: Option<ActivationKind>,
+}
+
+/// An observation normaliser as the affine map it is: `clip(obs * scale + shift, ±clip)`
+/// (`scale = 1 / sqrt(var + ε)`, `shift = -mean * scale`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObsAffine {
+    /// Per-value scale.
+    pub scale: Vec<f32>,
+    /// Per-value shift.
+    pub shift: Vec<f32>,
+    /// Clip after normalising (`inf`: none).
+    pub clip: f32,
+}
+
+impl ObsAffine {
+    /// No normalisation.
+    pub fn identity(n: usize) -> Self {
+        Self { scale: vec![1.0; n], shift: vec![0.0; n], clip: f32::INFINITY }
+    }
+}
+
+/// Builds the ONNX model of a feed-forward actor given as plain layers (the last one gives
+/// the normalised action mean `mu`, two values), with `norm` in front, carrying `contract`:
+/// input `obs` `[batch, n]`, output `mu` `[batch, 2]`. Every shape and value is checked:
+/// the chain of widths, the contract's observation length, finite weights.
+pub fn export_mlp(
+    layers: &[DenseLayer],
+    norm: &ObsAffine,
+    contract: &PolicyContract,
+) -> Result<pb::ModelProto, ExportError> {
+    let n = contract.obs_dim();
+    if !contract.io.recurrent.is_empty() {
+        return Err(ExportError::Shape("the contract names recurrent states for a feed-forward network".into()));
+    }
+    let Some(last) = layers.last() else {
+        return Err(ExportError::Shape("no layers".into()));
+    };
+    let mut width = n;
+    for (i, l) in layers.iter().enumerate() {
+        if l.inputs != width {
+            return Err(ExportError::Shape(format!("layer {i} takes {} values, expected {width}", l.inputs)));
+        }
+        if l.weight.len() != l.inputs * l.outputs || l.bias.len() != l.outputs {
+            return Err(ExportError::Shape(format!(
+                "layer {i}: expected {}×{} weights and {} biases, got {} and {}",
+                l.inputs,
+                l.outputs,
+                l.outputs,
+                l.weight.len(),
+                l.bias.len()
+            )));
+        }
+        if !l.weight.iter().chain(&l.bias).all(|x| x.is_finite()) {
+            return Err(ExportError::Shape(format!("layer {i}: expected finite weights")));
+        }
+        width = l.outputs;
+    }
+    if norm.scale.len() != n || norm.shift.len() != n {
+        return Err(ExportError::Shape(format!(
+            "the contract's observation has {n} values, the normaliser's scale {} and shift {}",
+            norm.scale.len(),
+            norm.shift.len()
+        )));
+    }
+    if !(norm.scale.iter().chain(&norm.shift).all(|x| x.is_finite()) && norm.clip > 0.0) {
+        return Err(ExportError::Shape("the normaliser: expected finite scale and shift and a positive clip".into()));
+    }
+    if last.outputs != 2 || last.activation.is_some() {
+        return Err(ExportError::Shape(format!(
+            "the last layer gives the action mean: 2 outputs and no activation, got {}{}",
+            last.outputs,
+            if last.activation.is_some() { " with an activation" } else { "" }
+        )));
+    }
+    let mut g = Graph { nodes: Vec::new(), inits: Vec::new(), count: 0 };
+    let mut h = g.normalizer(norm.scale.clone(), norm.shift.clone(), norm.clip);
+    for (i, l) in layers.iter().enumerate() {
+        let out = (i + 1 == layers.len()).then_some("mu");
+        h = g.gemm_raw(&h, l.weight.clone(), [l.inputs, l.outputs], l.bias.clone(), &format!("actor.{i}"), out);
+        if let Some(a) = l.activation {
+            h = g.activation(&h, a);
+        }
+    }
+    let io = &contract.io;
+    if io.obs != "obs" || io.mu != "mu" {
+        return Err(ExportError::Shape(format!(
+            "the contract's graph names: expected obs and mu, got {} and {}",
+            io.obs, io.mu
+        )));
+    }
+    Ok(g.model(contract, vec![value_info("obs", &[None, Some(n)])], vec![value_info("mu", &[None, Some(2)])]))
+}
+
+/// [`export_mlp`] encoded as ONNX bytes.
+pub fn export_mlp_onnx(
+    layers: &[DenseLayer],
+    norm: &ObsAffine,
+    contract: &PolicyContract,
+) -> Result<Vec<u8>, ExportError> {
+    Ok(export_mlp(layers, norm, contract)?.encode_to_vec())
 }
 
 /// A model of the contract's shape whose action mean echoes two observation values:

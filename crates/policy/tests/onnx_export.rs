@@ -9,7 +9,7 @@ use burn::prelude::*;
 use prost::Message;
 use rand::{RngExt, SeedableRng};
 use rlnav_policy::contract::{ActionContract, ActionScaling, CONTRACT_FORMAT, GraphIo, PolicyContract, ScanContract};
-use rlnav_policy::export::{export_model, lstm_io};
+use rlnav_policy::export::{DenseLayer, ObsAffine, export_mlp, export_model, lstm_io};
 use rlnav_policy::{ActivationKind, ActorCritic, NetworkConfig, PolicyRunner, RunningMeanStd};
 use rlnav_sim::LidarSpec;
 use rlnav_sim::task::ObservationLayout;
@@ -68,11 +68,19 @@ fn random_obs(rng: &mut impl rand::Rng, n: usize) -> Vec<f32> {
 }
 
 /// Writes the model, inputs and expected outputs for the ONNX Runtime check.
-fn write_case(name: &str, bytes: &[u8], steps: &[Vec<f32>], expected: &[Vec<f32>], recurrent: bool) -> PathBuf {
+/// `outputs`: the graph outputs ONNX Runtime must find.
+fn write_case(
+    name: &str,
+    bytes: &[u8],
+    steps: &[Vec<f32>],
+    expected: &[Vec<f32>],
+    recurrent: bool,
+    outputs: &[&str],
+) -> PathBuf {
     let model = tmp(&format!("{name}.onnx"));
     std::fs::write(&model, bytes).unwrap();
     let case = serde_json::json!({
-        "model": model, "recurrent": recurrent, "obs": steps, "mu": expected, "tolerance": 1e-5,
+        "model": model, "recurrent": recurrent, "obs": steps, "mu": expected, "tolerance": 1e-5, "outputs": outputs,
     });
     let path = tmp(&format!("{name}.json"));
     std::fs::write(&path, case.to_string()).unwrap();
@@ -141,9 +149,88 @@ fn mlp_and_lstm_exports_match_burn_tract_and_onnxruntime() {
         // The contract comes back out of the file as it went in.
         let back = rlnav_policy::runner::embedded_contract(&proto, name).unwrap().unwrap();
         assert_eq!(back, c);
-        cases.push(write_case(name, &bytes, &steps, &expected, cfg.is_recurrent()));
+        cases.push(write_case(name, &bytes, &steps, &expected, cfg.is_recurrent(), &["mu", "log_std", "value"]));
     }
     onnxruntime_check(&cases);
+}
+
+/// The plain layers' forward pass by hand, as PyTorch computes it.
+fn plain_forward(layers: &[DenseLayer], norm: &ObsAffine, obs: &[f32]) -> Vec<f32> {
+    let mut x: Vec<f32> = obs
+        .iter()
+        .zip(norm.scale.iter().zip(&norm.shift))
+        .map(|(o, (a, b))| (o * a + b).clamp(-norm.clip, norm.clip))
+        .collect();
+    for l in layers {
+        let mut y = l.bias.clone();
+        for (i, xi) in x.iter().enumerate() {
+            for (o, yo) in y.iter_mut().enumerate() {
+                *yo += xi * l.weight[i * l.outputs + o];
+            }
+        }
+        for v in &mut y {
+            *v = match l.activation {
+                Some(ActivationKind::Tanh) => v.tanh(),
+                Some(ActivationKind::Relu) => v.max(0.0),
+                Some(ActivationKind::Elu) => {
+                    if *v > 0.0 {
+                        *v
+                    } else {
+                        v.exp_m1()
+                    }
+                }
+                None => *v,
+            };
+        }
+        x = y;
+    }
+    x
+}
+
+#[test]
+fn plain_mlp_export_matches_its_forward_pass_tract_and_onnxruntime() {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+    let mut layer = |inputs: usize, outputs: usize, activation| DenseLayer {
+        weight: (0..inputs * outputs).map(|_| rng.random_range(-0.3..0.3)).collect(),
+        inputs,
+        outputs,
+        bias: (0..outputs).map(|_| rng.random_range(-0.1..0.1)).collect(),
+        activation,
+    };
+    let layers = vec![
+        layer(124, 64, Some(ActivationKind::Tanh)),
+        layer(64, 32, Some(ActivationKind::Relu)),
+        layer(32, 16, Some(ActivationKind::Elu)),
+        layer(16, 2, None),
+    ];
+    let (scale, shift) = normaliser(124, 4).affine();
+    let norm = ObsAffine { scale, shift, clip: 10.0 };
+    let c = contract(GraphIo::default());
+    let proto = export_mlp(&layers, &norm, &c).unwrap();
+    let mut runner = PolicyRunner::from_proto("plain", &proto, c.clone()).unwrap();
+    assert_eq!(rlnav_policy::runner::embedded_contract(&proto, "plain").unwrap().unwrap(), c);
+    let steps: Vec<Vec<f32>> = (0..20).map(|_| random_obs(&mut rng, 124)).collect();
+    let mut expected = Vec::new();
+    for obs in &steps {
+        let want = plain_forward(&layers, &norm, obs);
+        let got = runner.infer(obs).unwrap().mu;
+        assert!((got[0] - want[0]).abs() <= 1e-5 && (got[1] - want[1]).abs() <= 1e-5, "{got:?} vs {want:?}");
+        assert!(runner.infer(obs).unwrap().value.is_none(), "an actor alone has no value output");
+        expected.push(want);
+    }
+    onnxruntime_check(&[write_case("plain-mlp", &proto.encode_to_vec(), &steps, &expected, false, &["mu"])]);
+
+    // What does not fit is refused with what was expected.
+    let err = |layers: &[DenseLayer], norm: &ObsAffine| export_mlp(layers, norm, &c).unwrap_err().to_string();
+    assert!(err(&layers[1..], &norm).contains("layer 0 takes 64 values, expected 124"));
+    assert!(err(&layers[..3], &norm).contains("2 outputs and no activation, got 16"));
+    assert!(err(&layers, &ObsAffine::identity(60)).contains("124 values, the normaliser's scale 60"));
+    let mut nan = layers.clone();
+    nan[2].weight[3] = f32::NAN;
+    assert!(err(&nan, &norm).contains("layer 2: expected finite weights"));
+    let mut short = layers.clone();
+    short[1].bias.pop();
+    assert!(err(&short, &norm).contains("layer 1: expected 64×32 weights and 32 biases, got 2048 and 31"));
 }
 
 #[test]

@@ -15,6 +15,9 @@ use rlnav_sim::vec_env::VecEnv;
 use std::path::Path;
 use std::sync::Arc;
 
+mod evaluate;
+mod export;
+
 pyo3::create_exception!(
     _rlnav,
     RlnavError,
@@ -319,6 +322,9 @@ fn robots() -> Vec<&'static str> {
 #[pymodule]
 fn _rlnav(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<VecSim>()?;
+    m.add_class::<export::OnnxPolicy>()?;
+    m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(export::export_mlp, m)?)?;
     m.add_function(wrap_pyfunction!(load_scenario, m)?)?;
     m.add_function(wrap_pyfunction!(load_robot, m)?)?;
     m.add_function(wrap_pyfunction!(load_task, m)?)?;

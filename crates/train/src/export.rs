@@ -4,9 +4,7 @@
 use crate::config::RunConfig;
 use crate::run::{TrainError, load_learner};
 use rlnav_policy::RunningMeanStd;
-use rlnav_policy::contract::{
-    ActionContract, ActionScaling, CONTRACT_FORMAT, GraphIo, PolicyContract, RobotEnvelope, ScanContract,
-};
+use rlnav_policy::contract::{GraphIo, PolicyContract, RobotEnvelope};
 use rlnav_policy::export::{export_onnx, lstm_io};
 use rlnav_sim::RobotSpec;
 use std::path::Path;
@@ -14,32 +12,12 @@ use std::path::Path;
 /// The contract of a policy trained with `cfg` on `robot`: the task's observation and
 /// action, the robot's scan in `base_link` orientation.
 pub fn run_contract(cfg: &RunConfig, robot: &RobotSpec, lstm_units: usize) -> PolicyContract {
-    let mut scan = ScanContract::of(&robot.lidar);
-    // The contract's beams are in base_link orientation; the simulated lidar's own start
-    // angle is relative to its mount.
-    scan.angle_min += robot.lidar.mount.yaw;
-    scan.angle_max += robot.lidar.mount.yaw;
-    PolicyContract {
-        format: CONTRACT_FORMAT,
-        producer: format!("rlnav {}", env!("CARGO_PKG_VERSION")),
-        task: cfg.name.clone(),
-        robot: robot.name.clone(),
-        observation: cfg.task.observation.clone(),
-        scan,
-        action: ActionContract {
-            scaling: ActionScaling::Normalized,
-            linear: cfg.task.action.linear,
-            angular: cfg.task.action.angular,
-        },
-        control_period: cfg.task.control_period,
-        goal_tolerance: cfg.task.goal_tolerance,
-        io: if lstm_units > 0 { lstm_io(lstm_units) } else { GraphIo::default() },
-        plan: cfg.task.plan.clone(),
-        envelope: trained_robots(cfg, robot).map(|robots| {
-            let r = &cfg.task.randomization;
-            RobotEnvelope::of(&robots, [r.wheel_separation_jitter, r.speed_limit_jitter])
-        }),
-    }
+    let io = if lstm_units > 0 { lstm_io(lstm_units) } else { GraphIo::default() };
+    let envelope = trained_robots(cfg, robot).map(|robots| {
+        let r = &cfg.task.randomization;
+        RobotEnvelope::of(&robots, [r.wheel_separation_jitter, r.speed_limit_jitter])
+    });
+    PolicyContract::for_task(&cfg.name, &cfg.task, robot, io, envelope)
 }
 
 /// The robots a run trains on (`robots`, or `robot` alone), `robot` given as loaded; `None`
