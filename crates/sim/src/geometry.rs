@@ -306,17 +306,19 @@ impl Primitive {
             Primitive::Circle { center, radius } => (p - *center).length() - radius,
             Primitive::Segment { a, b } => point_segment_distance(p, *a, *b),
             Primitive::Polygon { vertices } => {
-                let n = vertices.len();
-                let mut d = f32::INFINITY;
+                // The nearest edge by squared distance, one square root at the end (the same
+                // value: the root is monotonic and correctly rounded).
+                let mut d2 = f32::INFINITY;
                 let mut inside = true;
-                for i in 0..n {
-                    let a = vertices[i];
-                    let b = vertices[(i + 1) % n];
-                    d = d.min(point_segment_distance(p, a, b));
+                let mut a = vertices[vertices.len() - 1];
+                for &b in vertices.iter() {
+                    d2 = d2.min(point_segment_distance_squared(p, a, b));
                     if (b - a).perp_dot(p - a) < 0.0 {
                         inside = false;
                     }
+                    a = b;
                 }
+                let d = d2.sqrt();
                 if inside { -d } else { d }
             }
         }
@@ -326,10 +328,16 @@ impl Primitive {
 /// Distance from `p` to segment `[a, b]`.
 #[inline]
 pub fn point_segment_distance(p: Vec2, a: Vec2, b: Vec2) -> f32 {
+    point_segment_distance_squared(p, a, b).sqrt()
+}
+
+/// Squared distance from `p` to segment `[a, b]`.
+#[inline]
+pub fn point_segment_distance_squared(p: Vec2, a: Vec2, b: Vec2) -> f32 {
     let e = b - a;
     let len2 = e.length_squared();
     let t = if len2 > 0.0 { ((p - a).dot(e) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    (a + e * t - p).length()
+    (a + e * t - p).length_squared()
 }
 
 /// An axis-aligned rectangle.

@@ -1,10 +1,9 @@
 //! Which places a robot can drive between: an occupancy grid inflated by the robot's
-//! clearance radius, labelled into connected components (4-connected breadth-first search).
+//! clearance radius, labelled into connected components (4-connected, run-based union-find).
 //! Built once per world; after that "can the robot get from A to B" is two look-ups.
 
 use crate::geometry::{Rect, Vec2};
 use crate::world::World;
-use std::collections::VecDeque;
 
 /// Connected free space of a world for a disc-shaped robot.
 #[derive(Clone, Debug)]
@@ -62,38 +61,7 @@ impl ReachabilityGrid {
                 }
             }
         }
-        let mut labels = vec![0u32; width * height];
-        let mut next = 0u32;
-        let mut queue = VecDeque::new();
-        for seed in 0..labels.len() {
-            if blocked[seed] || labels[seed] != 0 {
-                continue;
-            }
-            next += 1;
-            labels[seed] = next;
-            queue.push_back(seed);
-            while let Some(c) = queue.pop_front() {
-                let (x, y) = (c % width, c / width);
-                let mut visit = |n: usize| {
-                    if !blocked[n] && labels[n] == 0 {
-                        labels[n] = next;
-                        queue.push_back(n);
-                    }
-                };
-                if x > 0 {
-                    visit(c - 1);
-                }
-                if x + 1 < width {
-                    visit(c + 1);
-                }
-                if y > 0 {
-                    visit(c - width);
-                }
-                if y + 1 < height {
-                    visit(c + width);
-                }
-            }
-        }
+        let labels = label_components(&blocked, width, height);
         Self { origin: area.min, resolution, width, height, labels }
     }
 
@@ -284,6 +252,75 @@ impl ReachabilityGrid {
     }
 }
 
+/// 4-connected component labels of the free cells (0: blocked), numbered in the row-major
+/// order of each component's first cell. Run-based: each row's runs of free cells are
+/// joined (union-find) with the overlapping runs of the row below, then runs are filled with
+/// their component's label; on a room at 5 cm this does a fraction of a per-cell search's
+/// work, and a procedural world is labelled at every reset.
+fn label_components(blocked: &[bool], width: usize, height: usize) -> Vec<u32> {
+    // Runs `[start, end)` of free cells, row by row.
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    let mut row_start = Vec::with_capacity(height + 1);
+    for y in 0..height {
+        row_start.push(runs.len());
+        let row = &blocked[y * width..(y + 1) * width];
+        let mut x = 0;
+        while x < width {
+            if row[x] {
+                x += 1;
+                continue;
+            }
+            let start = x;
+            while x < width && !row[x] {
+                x += 1;
+            }
+            runs.push((y * width + start, y * width + x));
+        }
+    }
+    row_start.push(runs.len());
+    let mut parent: Vec<usize> = (0..runs.len()).collect();
+    fn find(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for y in 1..height {
+        let (below, here) = (row_start[y - 1]..row_start[y], row_start[y]..row_start[y + 1]);
+        let mut j = below.start;
+        for i in here {
+            let (s, e) = (runs[i].0 - y * width, runs[i].1 - y * width);
+            // Runs of the row below that share a column with this one (both lists are sorted).
+            while j < below.end && runs[j].1 - (y - 1) * width <= s {
+                j += 1;
+            }
+            let mut k = j;
+            while k < below.end && runs[k].0 - (y - 1) * width < e {
+                let (a, b) = (find(&mut parent, i), find(&mut parent, k));
+                // The root stays the earlier run: components keep their first cell's order.
+                if a != b {
+                    parent[a.max(b)] = a.min(b);
+                }
+                k += 1;
+            }
+        }
+    }
+    let mut labels = vec![0u32; width * height];
+    let mut label_of = vec![0u32; runs.len()];
+    let mut next = 0u32;
+    for i in 0..runs.len() {
+        let root = find(&mut parent, i);
+        if label_of[root] == 0 {
+            next += 1;
+            label_of[root] = next;
+        }
+        let (s, e) = runs[i];
+        labels[s..e].fill(label_of[root]);
+    }
+    labels
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -299,6 +336,71 @@ mod tests {
         ];
         v.extend(extra);
         World::new(v.into_iter().map(|s| Obstacle::new(s).unwrap()).collect())
+    }
+
+    /// The labels a per-cell breadth-first search gives, numbered as components are first met.
+    fn bfs_labels(blocked: &[bool], width: usize) -> Vec<u32> {
+        let mut labels = vec![0u32; blocked.len()];
+        let mut next = 0;
+        for seed in 0..blocked.len() {
+            if blocked[seed] || labels[seed] != 0 {
+                continue;
+            }
+            next += 1;
+            labels[seed] = next;
+            let mut queue = std::collections::VecDeque::from([seed]);
+            while let Some(c) = queue.pop_front() {
+                let (x, y) = (c % width, c / width);
+                let mut near = vec![];
+                if x > 0 {
+                    near.push(c - 1);
+                }
+                if x + 1 < width {
+                    near.push(c + 1);
+                }
+                if y > 0 {
+                    near.push(c - width);
+                }
+                if c + width < blocked.len() {
+                    near.push(c + width);
+                }
+                for n in near {
+                    if !blocked[n] && labels[n] == 0 {
+                        labels[n] = next;
+                        queue.push_back(n);
+                    }
+                }
+            }
+        }
+        labels
+    }
+
+    #[test]
+    fn run_labels_are_the_breadth_first_labels() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(9);
+        for k in 0..300 {
+            let (w, h) = (rng.random_range(1..40), rng.random_range(1..40));
+            // Sparse to dense, so that components merge in every way (U shapes, spirals).
+            let p = [0.1, 0.3, 0.45, 0.6][k % 4];
+            let blocked: Vec<bool> = (0..w * h).map(|_| rng.random_bool(p)).collect();
+            assert_eq!(label_components(&blocked, w, h), bfs_labels(&blocked, w), "{w}x{h} p {p}");
+        }
+        // A spiral: one component met again and again from below.
+        let (w, h) = (9, 9);
+        let art = [
+            "........#",
+            "#######.#",
+            "#.....#.#",
+            "#.###.#.#",
+            "#.#.#.#.#",
+            "#.#...#.#",
+            "#.#####.#",
+            "#.......#",
+            "#########",
+        ];
+        let blocked: Vec<bool> = art.iter().rev().flat_map(|r| r.chars().map(|c| c == '#')).collect();
+        assert_eq!(label_components(&blocked, w, h), bfs_labels(&blocked, w));
     }
 
     #[test]
