@@ -309,13 +309,12 @@ fn label_components(blocked: &[bool], width: usize, height: usize) -> Vec<u32> {
     let mut labels = vec![0u32; width * height];
     let mut label_of = vec![0u32; runs.len()];
     let mut next = 0u32;
-    for i in 0..runs.len() {
+    for (i, &(s, e)) in runs.iter().enumerate() {
         let root = find(&mut parent, i);
         if label_of[root] == 0 {
             next += 1;
             label_of[root] = next;
         }
-        let (s, e) = runs[i];
         labels[s..e].fill(label_of[root]);
     }
     labels
