@@ -4,7 +4,8 @@ crates/ros2/tests/fixtures/cdr_golden.json is this script's output, and
 crates/ros2/tests/cdr.rs builds the same messages in Rust and compares.
 
     python3.12 -m venv venv && venv/bin/pip install ros-jazzy-rclpy ros-jazzy-sensor-msgs \
-        ros-jazzy-nav-msgs ros-jazzy-geometry-msgs ros-jazzy-rosgraph-msgs ros-jazzy-rmw-fastrtps-cpp
+        ros-jazzy-nav-msgs ros-jazzy-geometry-msgs ros-jazzy-rosgraph-msgs ros-jazzy-rmw-fastrtps-cpp \
+        ros-jazzy-visualization-msgs
     venv/bin/python tools/ros2_golden.py > crates/ros2/tests/fixtures/cdr_golden.json
 """
 import json
@@ -80,6 +81,27 @@ def pose_stamped():
     return m
 
 
+def marker_array():
+    from geometry_msgs.msg import Point
+    from std_msgs.msg import ColorRGBA
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    clear = Marker(action=Marker.DELETEALL)
+    box = Marker(ns="movers", id=3, type=Marker.CUBE, action=Marker.ADD)
+    box.header.stamp, box.header.frame_id = stamp(7, 250), "odom"
+    box.pose.position.x, box.pose.position.y, box.pose.position.z = 1.5, -2.0, 0.25
+    box.pose.orientation.z, box.pose.orientation.w = QZ, QW
+    box.scale.x, box.scale.y, box.scale.z = 0.6, 0.4, 0.5
+    box.color = ColorRGBA(r=0.95, g=0.5, b=0.1, a=1.0)
+    tri = Marker(ns="obstacles", id=12, type=Marker.TRIANGLE_LIST, frame_locked=True, text="wedge")
+    tri.header.frame_id = "odom"
+    tri.pose.orientation.w = 1.0
+    tri.scale.x = tri.scale.y = tri.scale.z = 1.0
+    tri.points = [Point(x=0.0, y=0.0, z=0.0), Point(x=1.0, y=0.0, z=0.0), Point(x=0.0, y=2.0, z=0.0)]
+    tri.lifetime.sec, tri.lifetime.nanosec = 2, 500
+    return MarkerArray(markers=[clear, box, tri])
+
+
 messages = {
     "sensor_msgs/msg/LaserScan": scan(),
     "nav_msgs/msg/Odometry": odom(),
@@ -88,5 +110,6 @@ messages = {
     "geometry_msgs/msg/PoseStamped": pose_stamped(),
     "rosgraph_msgs/msg/Clock": Clock(clock=stamp(42, 999999999)),
     "std_msgs/msg/String": String(data="driving"),
+    "visualization_msgs/msg/MarkerArray": marker_array(),
 }
 print(json.dumps({k: serialize_message(v).hex() for k, v in messages.items()}, indent=1))

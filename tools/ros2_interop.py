@@ -108,7 +108,10 @@ def rclpy_sim(seconds):
 
     rclpy.init()
     node = rclpy.create_node("interop_driver")
-    seen = {"scan": 0, "odom": 0, "goal": 0, "beams": None, "scan_frame": None, "odom_frames": None, "map": None}
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    seen = {"scan": 0, "odom": 0, "goal": 0, "beams": None, "scan_frame": None, "odom_frames": None, "map": None,
+            "markers": None}
     state = {"pose": None, "goal": None}
 
     def on_scan(m):
@@ -134,7 +137,18 @@ def rclpy_sim(seconds):
             "occupied": sum(1 for v in data if v == 100), "free": sum(1 for v in data if v == 0),
         }
 
+    def on_markers(m):
+        shown = [k for k in m.markers if k.action == Marker.ADD]
+        seen["markers"] = {
+            "arrays": (seen["markers"] or {}).get("arrays", 0) + 1,
+            "ns": {ns: sum(1 for k in shown if k.ns == ns) for ns in sorted({k.ns for k in shown})},
+            "frames": sorted({k.header.frame_id for k in shown}),
+            "cleared": (seen["markers"] or {}).get("cleared", False)
+            or any(k.action == Marker.DELETEALL for k in m.markers),
+        }
+
     node.create_subscription(LaserScan, "/scan", on_scan, qos_profile_sensor_data)
+    node.create_subscription(MarkerArray, "/rlnav/sim/markers", on_markers, 10)
     node.create_subscription(Odometry, "/odom", on_odom, 10)
     node.create_subscription(PoseStamped, "/goal_pose", on_goal, 10)
     # As RViz2 and Nav2 subscribe to /map: transient local, so a late joiner gets it.
@@ -170,6 +184,10 @@ def rclpy_sim(seconds):
     m = seen["map"]
     ok = ok and m is not None and m["frame"] == "map" and m["cells"] == m["width"] * m["height"]
     ok = ok and m["occupied"] > 0 and m["free"] > m["occupied"]
+    # The scene for RViz2: the room's four walls and the goal, in the odometry frame.
+    k = seen["markers"]
+    ok = ok and k is not None and k["ns"].get("obstacles", 0) >= 4 and k["ns"].get("goal") == 1
+    ok = ok and k["frames"] == ["odom"] and k["arrays"] > 5
     result(ok, peer="rclpy", closest=closest, **seen)
 
 

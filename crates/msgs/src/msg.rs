@@ -55,6 +55,12 @@ fn definition_of(full_name: &str) -> Option<&'static str> {
         "geometry_msgs/msg/TransformStamped" => TransformStamped::DEFINITION,
         "geometry_msgs/msg/PoseStamped" => PoseStamped::DEFINITION,
         "nav_msgs/msg/MapMetaData" => MapMetaData::DEFINITION,
+        "builtin_interfaces/msg/Duration" => Duration::DEFINITION,
+        "std_msgs/msg/ColorRGBA" => ColorRGBA::DEFINITION,
+        "sensor_msgs/msg/CompressedImage" => CompressedImage::DEFINITION,
+        "visualization_msgs/msg/UVCoordinate" => UVCoordinate::DEFINITION,
+        "visualization_msgs/msg/MeshFile" => MeshFile::DEFINITION,
+        "visualization_msgs/msg/Marker" => Marker::DEFINITION,
         _ => return None,
     })
 }
@@ -563,6 +569,177 @@ pub struct Clock {
     pub clock: Time,
 }
 ros_message!(Clock, "rosgraph_msgs", "Clock", ["builtin_interfaces/msg/Time"], "builtin_interfaces/Time clock\n");
+
+/// `builtin_interfaces/Duration`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Duration {
+    /// Whole seconds.
+    pub sec: i32,
+    /// Nanoseconds past `sec`.
+    pub nanosec: u32,
+}
+ros_message!(Duration, "builtin_interfaces", "Duration", [], "int32 sec\nuint32 nanosec\n");
+
+/// `std_msgs/ColorRGBA`: components in [0, 1].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ColorRGBA {
+    /// Red.
+    pub r: f32,
+    /// Green.
+    pub g: f32,
+    /// Blue.
+    pub b: f32,
+    /// Opacity.
+    pub a: f32,
+}
+ros_message!(ColorRGBA, "std_msgs", "ColorRGBA", [], "float32 r\nfloat32 g\nfloat32 b\nfloat32 a\n");
+
+/// `sensor_msgs/CompressedImage` (a marker's texture; rlnav sends it empty).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CompressedImage {
+    /// Header.
+    pub header: Header,
+    /// `jpeg`, `png`...
+    pub format: String,
+    /// The compressed bytes.
+    pub data: Vec<u8>,
+}
+ros_message!(
+    CompressedImage,
+    "sensor_msgs",
+    "CompressedImage",
+    ["std_msgs/msg/Header", "builtin_interfaces/msg/Time"],
+    "std_msgs/Header header\nstring format\nuint8[] data\n"
+);
+
+/// `visualization_msgs/UVCoordinate`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct UVCoordinate {
+    /// u.
+    pub u: f32,
+    /// v.
+    pub v: f32,
+}
+ros_message!(UVCoordinate, "visualization_msgs", "UVCoordinate", [], "float32 u\nfloat32 v\n");
+
+/// `visualization_msgs/MeshFile`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshFile {
+    /// File name (its extension gives the format).
+    pub filename: String,
+    /// The file's bytes.
+    pub data: Vec<u8>,
+}
+ros_message!(MeshFile, "visualization_msgs", "MeshFile", [], "string filename\nuint8[] data\n");
+
+/// `visualization_msgs/Marker` (ROS 2 Jazzy's fields): a shape RViz2 and Foxglove draw.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Marker {
+    /// Header (the frame the pose is in).
+    pub header: Header,
+    /// Namespace; with `id`, what a later marker replaces.
+    pub ns: String,
+    /// Id within the namespace.
+    pub id: i32,
+    /// Shape: [`Marker::CUBE`], [`Marker::CYLINDER`]...
+    #[serde(rename = "type")]
+    pub kind: i32,
+    /// [`Marker::ADD`], [`Marker::DELETE`] or [`Marker::DELETEALL`].
+    pub action: i32,
+    /// Pose of the shape's centre.
+    pub pose: Pose,
+    /// Size (m) along the shape's axes.
+    pub scale: Vector3,
+    /// Colour.
+    pub color: ColorRGBA,
+    /// How long it lasts (0: until replaced).
+    pub lifetime: Duration,
+    /// Re-transformed into its frame every time it is drawn.
+    pub frame_locked: bool,
+    /// Points of line and list shapes.
+    pub points: Vec<Point>,
+    /// Per-point colours.
+    pub colors: Vec<ColorRGBA>,
+    /// Texture resource.
+    pub texture_resource: String,
+    /// Texture.
+    pub texture: CompressedImage,
+    /// Texture coordinates.
+    pub uv_coordinates: Vec<UVCoordinate>,
+    /// Text of a text marker.
+    pub text: String,
+    /// Mesh resource.
+    pub mesh_resource: String,
+    /// Mesh file.
+    pub mesh_file: MeshFile,
+    /// Use the mesh's own materials.
+    pub mesh_use_embedded_materials: bool,
+}
+ros_message!(
+    Marker,
+    "visualization_msgs",
+    "Marker",
+    [
+        "std_msgs/msg/Header",
+        "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/Pose",
+        "geometry_msgs/msg/Point",
+        "geometry_msgs/msg/Quaternion",
+        "geometry_msgs/msg/Vector3",
+        "std_msgs/msg/ColorRGBA",
+        "builtin_interfaces/msg/Duration",
+        "sensor_msgs/msg/CompressedImage",
+        "visualization_msgs/msg/UVCoordinate",
+        "visualization_msgs/msg/MeshFile"
+    ],
+    "int32 ARROW=0\nint32 CUBE=1\nint32 SPHERE=2\nint32 CYLINDER=3\nint32 LINE_STRIP=4\nint32 LINE_LIST=5\nint32 CUBE_LIST=6\nint32 SPHERE_LIST=7\nint32 POINTS=8\nint32 TEXT_VIEW_FACING=9\nint32 MESH_RESOURCE=10\nint32 TRIANGLE_LIST=11\nint32 ARROW_STRIP=12\nint32 ADD=0\nint32 MODIFY=0\nint32 DELETE=2\nint32 DELETEALL=3\nstd_msgs/Header header\nstring ns\nint32 id\nint32 type\nint32 action\ngeometry_msgs/Pose pose\ngeometry_msgs/Vector3 scale\nstd_msgs/ColorRGBA color\nbuiltin_interfaces/Duration lifetime\nbool frame_locked\ngeometry_msgs/Point[] points\nstd_msgs/ColorRGBA[] colors\nstring texture_resource\nsensor_msgs/CompressedImage texture\nUVCoordinate[] uv_coordinates\nstring text\nstring mesh_resource\nMeshFile mesh_file\nbool mesh_use_embedded_materials\n"
+);
+
+impl Marker {
+    /// A box.
+    pub const CUBE: i32 = 1;
+    /// A sphere.
+    pub const SPHERE: i32 = 2;
+    /// An upright cylinder.
+    pub const CYLINDER: i32 = 3;
+    /// Line segments between consecutive point pairs.
+    pub const LINE_LIST: i32 = 5;
+    /// Triangles, three points each.
+    pub const TRIANGLE_LIST: i32 = 11;
+    /// Add or replace.
+    pub const ADD: i32 = 0;
+    /// Remove `ns`/`id`.
+    pub const DELETE: i32 = 2;
+    /// Remove every marker of the topic.
+    pub const DELETEALL: i32 = 3;
+}
+
+/// `visualization_msgs/MarkerArray`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MarkerArray {
+    /// The markers, applied in order.
+    pub markers: Vec<Marker>,
+}
+ros_message!(
+    MarkerArray,
+    "visualization_msgs",
+    "MarkerArray",
+    [
+        "visualization_msgs/msg/Marker",
+        "std_msgs/msg/Header",
+        "builtin_interfaces/msg/Time",
+        "geometry_msgs/msg/Pose",
+        "geometry_msgs/msg/Point",
+        "geometry_msgs/msg/Quaternion",
+        "geometry_msgs/msg/Vector3",
+        "std_msgs/msg/ColorRGBA",
+        "builtin_interfaces/msg/Duration",
+        "sensor_msgs/msg/CompressedImage",
+        "visualization_msgs/msg/UVCoordinate",
+        "visualization_msgs/msg/MeshFile"
+    ],
+    "Marker[] markers\n"
+);
 
 /// CDR encapsulation header for little-endian plain CDR, as ROS 2 writes it.
 pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];

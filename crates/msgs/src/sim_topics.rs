@@ -3,10 +3,12 @@
 //! benchmark writes them to MCAP, so a recording and a live run carry the same bytes.
 
 use crate::msg::{
-    self, Covariance, Header, LaserScan, MapMetaData, OccupancyGrid, Odometry, Pose, PoseStamped, PoseWithCovariance,
-    TFMessage, Time, TransformStamped, TwistWithCovariance,
+    self, ColorRGBA, Covariance, Header, LaserScan, MapMetaData, Marker, MarkerArray, OccupancyGrid, Odometry, Pose,
+    PoseStamped, PoseWithCovariance, TFMessage, Time, TransformStamped, TwistWithCovariance,
 };
+use rlnav_sim::geometry::{ObstacleSpec, Primitive};
 use rlnav_sim::map::Cell;
+use rlnav_sim::movers::MoverShape;
 use rlnav_sim::{LidarSpec, NavEnv, Pose2, Twist, Vec2, World};
 
 /// The frame names of REP-105, as a robot's URDF and driver name them.
@@ -156,6 +158,107 @@ pub fn map_message(world: &World, stamp: Time, frame: &str) -> OccupancyGrid {
     }
 }
 
+/// Marker colours: static obstacles grey, movers orange, people blue, the goal green.
+const GREY: ColorRGBA = ColorRGBA { r: 0.55, g: 0.55, b: 0.6, a: 1.0 };
+const ORANGE: ColorRGBA = ColorRGBA { r: 0.95, g: 0.5, b: 0.1, a: 1.0 };
+const BLUE: ColorRGBA = ColorRGBA { r: 0.2, g: 0.4, b: 0.9, a: 1.0 };
+const GREEN: ColorRGBA = ColorRGBA { r: 0.1, g: 0.8, b: 0.3, a: 0.6 };
+
+/// Height drawn for obstacles and movers, and for people (m).
+const OBSTACLE_HEIGHT: f64 = 0.5;
+const PERSON_HEIGHT: f64 = 1.7;
+
+/// An upright shape standing on the floor at `(x, y)`, turned by `yaw`.
+#[allow(clippy::too_many_arguments)]
+fn solid(
+    header: &Header,
+    ns: &str,
+    id: usize,
+    kind: i32,
+    x: f32,
+    y: f32,
+    yaw: f32,
+    size: [f64; 3],
+    color: ColorRGBA,
+) -> Marker {
+    let mut pose = Pose::planar(x as f64, y as f64, yaw as f64);
+    pose.position.z = 0.5 * size[2];
+    Marker {
+        header: header.clone(),
+        ns: ns.into(),
+        id: id as i32,
+        kind,
+        action: Marker::ADD,
+        pose,
+        scale: msg::Vector3 { x: size[0], y: size[1], z: size[2] },
+        color,
+        ..Default::default()
+    }
+}
+
+/// The scene as `visualization_msgs/MarkerArray` in `frame` (the odometry frame, in which the
+/// world is laid out), for RViz2 and Foxglove: namespace `obstacles` (cylinders, boxes,
+/// walls as thin boxes, other polygons as floor triangles), `movers`, `people` (cylinders of
+/// their radius) and `goal` (a disc of the goal tolerance). With `clear`, a `DELETEALL`
+/// comes first, so that a new episode's world replaces the last one's whole.
+pub fn scene_markers(env: &NavEnv, stamp: Time, frame: &str, clear: bool) -> MarkerArray {
+    let header = Header::new(stamp, frame);
+    let mut markers = Vec::new();
+    if clear {
+        markers.push(Marker { header: header.clone(), action: Marker::DELETEALL, ..Default::default() });
+    }
+    let h = OBSTACLE_HEIGHT;
+    for (i, o) in env.world().obstacles().iter().enumerate() {
+        let m = match &o.primitive {
+            Primitive::Circle { center, radius } => {
+                let d = 2.0 * *radius as f64;
+                solid(&header, "obstacles", i, Marker::CYLINDER, center.x, center.y, 0.0, [d, d, h], GREY)
+            }
+            Primitive::Segment { a, b } => {
+                let (c, e) = ((*a + *b) * 0.5, *b - *a);
+                let size = [e.length() as f64, 0.05, h];
+                solid(&header, "obstacles", i, Marker::CUBE, c.x, c.y, e.y.atan2(e.x), size, GREY)
+            }
+            Primitive::Polygon { vertices } if matches!(o.spec, ObstacleSpec::Box { .. }) && vertices.len() == 4 => {
+                let c = vertices.iter().fold(Vec2::ZERO, |s, v| s + *v) * 0.25;
+                let (e0, e1) = (vertices[1] - vertices[0], vertices[2] - vertices[1]);
+                let size = [e0.length() as f64, e1.length() as f64, h];
+                solid(&header, "obstacles", i, Marker::CUBE, c.x, c.y, e0.y.atan2(e0.x), size, GREY)
+            }
+            Primitive::Polygon { vertices } => {
+                let mut m = solid(&header, "obstacles", i, Marker::TRIANGLE_LIST, 0.0, 0.0, 0.0, [1.0; 3], GREY);
+                m.pose.position.z = 0.0;
+                let point = |v: Vec2| msg::Point { x: v.x as f64, y: v.y as f64, z: 0.0 };
+                for k in 1..vertices.len().saturating_sub(1) {
+                    m.points.extend([point(vertices[0]), point(vertices[k]), point(vertices[k + 1])]);
+                }
+                m
+            }
+        };
+        markers.push(m);
+    }
+    for (i, mv) in env.movers().iter().enumerate() {
+        let p = mv.pose;
+        markers.push(match mv.shape {
+            MoverShape::Circle { radius } => {
+                let d = 2.0 * radius as f64;
+                solid(&header, "movers", i, Marker::CYLINDER, p.x, p.y, 0.0, [d, d, h], ORANGE)
+            }
+            MoverShape::Box { size } => {
+                let s = [size[0] as f64, size[1] as f64, h];
+                solid(&header, "movers", i, Marker::CUBE, p.x, p.y, p.yaw, s, ORANGE)
+            }
+        });
+    }
+    for (i, person) in env.people().iter().enumerate() {
+        let (q, d) = (person.position, 2.0 * person.radius as f64);
+        markers.push(solid(&header, "people", i, Marker::CYLINDER, q.x, q.y, 0.0, [d, d, PERSON_HEIGHT], BLUE));
+    }
+    let (g, d) = (env.goal(), 2.0 * env.setup().task.goal_tolerance as f64);
+    markers.push(solid(&header, "goal", 0, Marker::CYLINDER, g.x, g.y, 0.0, [d, d, 0.02], GREEN));
+    MarkerArray { markers }
+}
+
 impl SimMessages {
     /// The messages for the environment's current state at time `t` (s).
     pub fn of(env: &NavEnv, t: f64, frames: &Frames) -> Self {
@@ -178,6 +281,47 @@ impl SimMessages {
 mod tests {
     use super::*;
     use std::sync::Arc;
+
+    #[test]
+    fn the_scene_as_markers() {
+        // Walls, boxes and cylinders, a crossing box mover and people: each one marker where
+        // the simulator has it.
+        let mut seen = [0; 3];
+        for name in ["static-room", "random-rooms", "random-dynamic", "paper-dynamic-box01", "people-room"] {
+            let setup = rlnav_sim::task::EnvSetup::from_scenario_name(name).unwrap();
+            let env = NavEnv::new(Arc::new(setup), 5).unwrap();
+            let m = scene_markers(&env, Time::from_secs(1.5), "odom", true);
+            assert_eq!(m.markers[0].action, Marker::DELETEALL);
+            let count = |ns: &str| m.markers.iter().filter(|k| k.ns == ns).count();
+            assert_eq!(count("obstacles"), env.world().obstacles().len(), "{name}");
+            assert_eq!(count("movers"), env.movers().len(), "{name}");
+            assert_eq!(count("people"), env.people().len(), "{name}");
+            assert_eq!(count("goal"), 1);
+            for k in &m.markers[1..] {
+                assert_eq!((k.header.frame_id.as_str(), k.action), ("odom", Marker::ADD));
+                assert!(k.scale.x > 0.0 && k.scale.y > 0.0 && k.scale.z > 0.0, "{name}: {k:?}");
+            }
+            // Each obstacle's drawn centre is inside or on it.
+            for (k, o) in m.markers[1..].iter().zip(env.world().obstacles()) {
+                if k.kind != Marker::TRIANGLE_LIST {
+                    let c = Vec2::new(k.pose.position.x as f32, k.pose.position.y as f32);
+                    assert!(o.primitive.signed_distance(c) <= 1e-3, "{name}: {k:?}");
+                }
+            }
+            for (k, p) in m.markers.iter().filter(|k| k.ns == "people").zip(env.people()) {
+                assert!((k.pose.position.x as f32 - p.position.x).abs() < 1e-5);
+                assert!((k.scale.x as f32 - 2.0 * p.radius).abs() < 1e-5);
+            }
+            let g = m.markers.last().unwrap();
+            assert!((g.pose.position.x as f32 - env.goal().x).abs() < 1e-5);
+            // A step later, without the clear: the same markers less the DELETEALL.
+            assert_eq!(scene_markers(&env, Time::from_secs(1.6), "odom", false).markers.len(), m.markers.len() - 1);
+            seen[0] += m.markers.iter().filter(|k| k.kind == Marker::CUBE && k.ns == "movers").count();
+            seen[1] += count("people");
+            seen[2] += m.markers.iter().filter(|k| k.kind == Marker::CUBE && k.ns == "obstacles").count();
+        }
+        assert!(seen.iter().all(|n| *n > 0), "box movers, people and boxes or walls were all drawn: {seen:?}");
+    }
 
     #[test]
     fn the_world_as_a_map() {

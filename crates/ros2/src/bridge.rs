@@ -1,15 +1,17 @@
 //! `rlnav ros2 sim`: the simulator as a ROS 2 robot, the part Gazebo plays in the reference
 //! article. It runs a scenario in real time (or faster, with `/clock`), publishes `/scan`,
 //! `/odom`, `/tf` (odom -> base_link), `/tf_static` (map -> odom, base_link -> laser), `/clock`,
-//! the world on `/map` (transient local, as `map_server` serves it) and the scenario's goal on
-//! `/goal_pose`, and drives the robot with what arrives on `/cmd_vel`.
+//! the world on `/map` (transient local, as `map_server` serves it), the scene as markers on
+//! `/rlnav/sim/markers` (obstacles, movers, people and the goal, for RViz2 and Foxglove) and
+//! the scenario's goal on `/goal_pose`, and drives the robot with what arrives on `/cmd_vel`.
 //! [`SimBridge`] is the logic without DDS; [`run_bridge`] puts it on the wire.
 
 use crate::bus::{Bus, BusError, Qos, Reach, drain};
 use crate::msg::{
-    self, Clock, LaserScan, OccupancyGrid, Odometry, PoseStamped, StringMsg, TFMessage, TransformStamped, TwistStamped,
+    self, Clock, LaserScan, MarkerArray, OccupancyGrid, Odometry, PoseStamped, StringMsg, TFMessage, TransformStamped,
+    TwistStamped,
 };
-use crate::sim_topics::{Frames, SimMessages, map_message, tf_message};
+use crate::sim_topics::{Frames, SimMessages, map_message, scene_markers, tf_message};
 use rlnav_sim::task::{ActionConfig, EnvSetup, SimError, TaskConfig};
 use rlnav_sim::{EpisodeStats, NavEnv, RobotSpec, ScenarioSpec, Twist};
 use std::sync::Arc;
@@ -19,6 +21,9 @@ use std::time::{Duration, Instant};
 /// The frame of `/map`, which the bridge puts at the odometry origin (a perfectly localised
 /// robot: `map -> odom` is the identity).
 pub const MAP_FRAME: &str = "map";
+
+/// Where the scene's markers go.
+pub const MARKERS_TOPIC: &str = "/rlnav/sim/markers";
 
 /// How the bridge runs.
 #[derive(Clone, Debug)]
@@ -142,6 +147,7 @@ pub fn run_bridge(
     let goal_pub = bus.publisher::<PoseStamped>("/goal_pose", Qos::Default)?;
     let episode_pub = bus.publisher::<StringMsg>("/rlnav/sim/episode", Qos::Default)?;
     let map_pub = bus.publisher::<OccupancyGrid>("/map", Qos::Latched)?;
+    let markers_pub = bus.publisher::<MarkerArray>(MARKERS_TOPIC, Qos::Default)?;
     // The world as a map, at the start and whenever an episode brings a new one.
     let publish_map = |b: &SimBridge| {
         let _ = map_pub.publish(map_message(b.env().world(), b.messages().stamp, MAP_FRAME));
@@ -156,7 +162,10 @@ pub fn run_bridge(
     let mut last_goal = f64::NEG_INFINITY;
     let mut dropped = 0;
     let mount = bridge.env().setup().lidar.spec().mount;
-    let publish = |b: &SimBridge, goal_due: bool| {
+    // The whole scene every step (a late joiner sees it at once; a few kB), cleared first at
+    // each new episode.
+    let publish = |b: &SimBridge, goal_due: bool, new_episode: bool| {
+        let _ = markers_pub.publish(scene_markers(b.env(), b.messages().stamp, &opts.frames.odom, new_episode));
         let m = b.messages();
         let _ = clock_pub.publish(Clock { clock: m.stamp });
         let _ = odom_pub.publish(m.odom.clone());
@@ -172,7 +181,7 @@ pub fn run_bridge(
     let map_to_odom = TransformStamped::planar(msg::Time::default(), MAP_FRAME, &opts.frames.odom, 0.0, 0.0, 0.0);
     let _ = tf_static_pub.publish(TFMessage { transforms: vec![map_to_odom, statics.transforms[1].clone()] });
     publish_map(&bridge);
-    publish(&bridge, true);
+    publish(&bridge, true, true);
     while !stop.load(Ordering::Relaxed) && (opts.episodes == 0 || done < opts.episodes) {
         next += wall_period;
         if let Some(s) = &twist_sub {
@@ -199,7 +208,7 @@ pub fn run_bridge(
             on_episode(&stats);
             publish_map(&bridge);
         }
-        publish(&bridge, goal_due);
+        publish(&bridge, goal_due, ended.is_some());
         let now = Instant::now();
         if next > now {
             std::thread::sleep(next - now);

@@ -81,3 +81,39 @@ fn twists_poses_clock_and_string_match_ros2() {
     check(Clock { clock: Time { sec: 42, nanosec: 999_999_999 } });
     check(StringMsg { data: "driving".into() });
 }
+
+#[test]
+fn marker_array_matches_ros2() {
+    let clear = Marker { action: Marker::DELETEALL, ..Default::default() };
+    let mut pose = Pose::planar(1.5, -2.0, 0.0);
+    pose.position.z = 0.25;
+    pose.orientation = rotated();
+    let moving_box = Marker {
+        header: Header::new(Time { sec: 7, nanosec: 250 }, "odom"),
+        ns: "movers".into(),
+        id: 3,
+        kind: Marker::CUBE,
+        action: Marker::ADD,
+        pose,
+        scale: Vector3 { x: 0.6, y: 0.4, z: 0.5 },
+        color: ColorRGBA { r: 0.95, g: 0.5, b: 0.1, a: 1.0 },
+        ..Default::default()
+    };
+    let mut identity = Pose::default();
+    identity.orientation.w = 1.0;
+    let point = |x: f64, y: f64| Point { x, y, z: 0.0 };
+    let wedge = Marker {
+        header: Header::new(Time::default(), "odom"),
+        ns: "obstacles".into(),
+        id: 12,
+        kind: Marker::TRIANGLE_LIST,
+        pose: identity,
+        scale: Vector3 { x: 1.0, y: 1.0, z: 1.0 },
+        lifetime: Duration { sec: 2, nanosec: 500 },
+        frame_locked: true,
+        points: vec![point(0.0, 0.0), point(1.0, 0.0), point(0.0, 2.0)],
+        text: "wedge".into(),
+        ..Default::default()
+    };
+    check(MarkerArray { markers: vec![clear, moving_box, wedge] });
+}
