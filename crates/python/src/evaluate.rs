@@ -1,7 +1,7 @@
 //! `rlnav.evaluate`'s native part: a Python callable through a benchmark suite beside the
 //! named controllers, on the same seeded episodes, giving `rlnav bench`'s tables and files.
 
-use crate::err;
+use crate::{err, task_file};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use rlnav_bench::batch::BatchPolicy;
@@ -13,24 +13,29 @@ struct PyPolicy(Py<PyAny>);
 
 impl BatchPolicy for PyPolicy {
     fn act(&mut self, obs: &[f32], obs_dim: usize, actions: &mut [[f32; 2]]) -> Result<(), String> {
-        Python::attach(|py| -> PyResult<()> {
-            // Ctrl-C in a long evaluation raises KeyboardInterrupt here.
-            py.check_signals()?;
-            let rows = actions.len();
-            let x = PyArray1::from_slice(py, obs).reshape([rows, obs_dim])?;
-            let out = self.0.call1(py, (x,))?;
-            let a: PyReadonlyArray2<f32> = out.extract(py).map_err(|_| {
-                err(format!("the policy must return a float32 array of shape ({rows}, 2), got {}", describe(py, &out)))
-            })?;
-            if a.shape() != [rows, 2] {
-                return Err(err(format!("the policy must return shape ({rows}, 2), got {:?}", a.shape())));
-            }
-            for (dst, src) in actions.iter_mut().zip(a.as_array().rows()) {
-                *dst = [src[0], src[1]];
-            }
-            Ok(())
+        Python::attach(|py| {
+            let mut call = || -> PyResult<()> {
+                // Ctrl-C in a long evaluation raises KeyboardInterrupt here.
+                py.check_signals()?;
+                let rows = actions.len();
+                let x = PyArray1::from_slice(py, obs).reshape([rows, obs_dim])?;
+                let out = self.0.call1(py, (x,))?;
+                let a: PyReadonlyArray2<f32> = out.extract(py).map_err(|_| {
+                    err(format!(
+                        "the policy must return a float32 array of shape ({rows}, 2), got {}",
+                        describe(py, &out)
+                    ))
+                })?;
+                if a.shape() != [rows, 2] {
+                    return Err(err(format!("the policy must return shape ({rows}, 2), got {:?}", a.shape())));
+                }
+                for (dst, src) in actions.iter_mut().zip(a.as_array().rows()) {
+                    *dst = [src[0], src[1]];
+                }
+                Ok(())
+            };
+            call().map_err(|e| format_py_err(py, &e))
         })
-        .map_err(|e| Python::attach(|py| format_py_err(py, &e)))
     }
 }
 
@@ -91,10 +96,7 @@ pub fn evaluate(
     if baselines.contains(&name) {
         return Err(err(format!("name: `{name}` is also a baseline's name; give the policy another")));
     }
-    let task = match task {
-        Some(p) => rlnav_sim::TaskConfig::from_file(Path::new(p)).map_err(err)?,
-        None => rlnav_sim::TaskConfig::default(),
-    };
+    let task = task_file(task)?;
     let threads = if threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { threads };
     let opts = RunOptions { robot, episodes: episodes.unwrap_or(spec.episodes), seed, threads, record: None };
     let mut callable = PyPolicy(policy);

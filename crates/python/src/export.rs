@@ -1,7 +1,7 @@
 //! A network trained in Python as an rlnav policy file, and any rlnav policy file run from
 //! Python: `rlnav.export`'s native part and [`OnnxPolicy`].
 
-use crate::{err, json_to_py};
+use crate::{err, json_to_py, task_file};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use rlnav_policy::contract::{GraphIo, PolicyContract, RobotEnvelope};
@@ -34,10 +34,7 @@ pub fn export_mlp<'py>(
     name: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let robot = rlnav_sim::RobotSpec::load(robot).map_err(err)?;
-    let task = match task {
-        Some(p) => rlnav_sim::TaskConfig::from_file(Path::new(p)).map_err(err)?,
-        None => rlnav_sim::TaskConfig::default(),
-    };
+    let task = task_file(task)?;
     let mut dense = Vec::with_capacity(layers.len());
     for (i, (w, b, act)) in layers.iter().enumerate() {
         let [inputs, outputs] =

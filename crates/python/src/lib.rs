@@ -29,6 +29,14 @@ fn err(e: impl std::fmt::Display) -> PyErr {
     RlnavError::new_err(e.to_string())
 }
 
+/// A task file, or the built-in task without one; a bad file raises `RlnavError` naming it.
+fn task_file(path: Option<&str>) -> PyResult<rlnav_sim::TaskConfig> {
+    match path {
+        Some(p) => rlnav_sim::TaskConfig::from_file(Path::new(p)).map_err(err),
+        None => Ok(rlnav_sim::TaskConfig::default()),
+    }
+}
+
 /// Parses JSON text into Python objects (dicts, lists, floats...).
 fn json_to_py<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?.call_method1("loads", (text,))
@@ -299,10 +307,7 @@ fn load_robot<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
 #[pyfunction]
 #[pyo3(signature = (path=None))]
 fn load_task<'py>(py: Python<'py>, path: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
-    let task = match path {
-        Some(p) => rlnav_sim::TaskConfig::from_file(Path::new(p)).map_err(err)?,
-        None => rlnav_sim::TaskConfig::default(),
-    };
+    let task = task_file(path)?;
     json_to_py(py, &serde_json::to_string(&task).map_err(err)?)
 }
 
