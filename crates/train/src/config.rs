@@ -94,6 +94,46 @@ pub struct PpoConfig {
     pub threads: usize,
     /// Which code computes the update: `auto` (default), `fast` or `burn`.
     pub learner: Learner,
+    /// A classical controller whose commands the policy is also taught to imitate early in
+    /// training (kickstarting; absent: PPO alone).
+    pub teacher: Option<TeacherConfig>,
+}
+
+/// Kickstarting from a classical controller (Schmitt et al. 2018, "Kickstarting deep
+/// reinforcement learning"): while the policy collects its own experience, the teacher
+/// labels the states it visits with the command it would give (as in DAgger), and the update
+/// adds `weight · mean ‖μ(s) − a_teacher(s)‖²` to the PPO loss. The weight falls linearly to
+/// `final_weight` over `epochs` and stays there; at 0, PPO alone trains the policy from then on
+/// (and no labels are computed).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TeacherConfig {
+    /// The teacher: `dwa` (the benchmark's A* + DWA planner, given each episode's world as its
+    /// prior map).
+    pub controller: String,
+    /// Weight of the imitation term at epoch 0.
+    pub weight: f32,
+    /// Epochs over which the weight falls to `final_weight`.
+    pub epochs: usize,
+    /// Weight from `epochs` on.
+    pub final_weight: f32,
+    /// Share of the environments whose states the teacher labels (the teacher costs far more
+    /// per step than the simulator).
+    pub share: f32,
+}
+
+impl Default for TeacherConfig {
+    fn default() -> Self {
+        Self { controller: "dwa".into(), weight: 1.0, epochs: 200, final_weight: 0.0, share: 0.25 }
+    }
+}
+
+impl TeacherConfig {
+    /// The imitation weight at `epoch` (`final_weight` from `epochs` on).
+    pub fn weight_at(&self, epoch: usize) -> f32 {
+        let f = (epoch as f32 / self.epochs.max(1) as f32).min(1.0);
+        self.weight + (self.final_weight - self.weight) * f
+    }
 }
 
 impl Default for PpoConfig {
@@ -121,6 +161,7 @@ impl Default for PpoConfig {
             max_epochs: 200,
             threads: 0,
             learner: Learner::Auto,
+            teacher: None,
         }
     }
 }
@@ -357,6 +398,14 @@ impl Validate for RunConfig {
             if t.minibatch_size % t.seq_len != 0 {
                 return Err(Invalid::new("train.minibatch_size", "a multiple of seq_len for an LSTM policy"));
             }
+        }
+        if let Some(k) = &t.teacher {
+            if k.controller != "dwa" {
+                return Err(Invalid::new("train.teacher.controller", format!("dwa, got `{}`", k.controller)));
+            }
+            check_range("train.teacher.weight", k.weight, 0.0, 1000.0)?;
+            check_range("train.teacher.final_weight", k.final_weight, 0.0, 1000.0)?;
+            check_range("train.teacher.share", k.share, 1e-6, 1.0)?;
         }
         if self.eval.episodes % self.eval.envs != 0 {
             return Err(Invalid::new("eval.envs", "a divisor of eval.episodes"));

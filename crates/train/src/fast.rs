@@ -90,6 +90,9 @@ pub struct Batch<'a> {
     pub returns: &'a [f32],
     /// Values the collecting network predicted.
     pub old_values: &'a [f32],
+    /// A teacher's actions `[rows][act]` to imitate (kickstarting), NaN on rows it did not
+    /// label; empty: none.
+    pub teacher: &'a [f32],
 }
 
 /// PPO loss settings (from `PpoConfig`).
@@ -105,6 +108,8 @@ pub struct LossConfig {
     pub entropy_coef: f32,
     /// Bounds loss weight.
     pub bounds_loss_coef: f32,
+    /// Weight of the imitation term `mean ‖μ − a_teacher‖²` over the labelled rows.
+    pub teacher_coef: f32,
 }
 
 /// What one minibatch's loss measured, and the network's outputs needed for the KL.
@@ -122,6 +127,9 @@ pub struct LossReport {
     pub ratios: Vec<f32>,
     /// Global gradient norm before clipping.
     pub grad_norm: f32,
+    /// Mean squared distance of the means from the teacher's actions on the labelled rows
+    /// (0 with none).
+    pub teacher_loss: f32,
 }
 
 /// A trunk's activations, its input first, one `[rows][width]` buffer per layer.
@@ -392,10 +400,14 @@ impl FastMlp {
         let std: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
         let e = cfg.e_clip;
         let n_chunks = rows.div_ceil(CHUNK);
+        let labelled = |k: usize| !batch.teacher.is_empty() && batch.teacher[k * act].is_finite();
+        let n_labelled = (0..rows).filter(|&k| labelled(k)).count();
+        let teach = if n_labelled > 0 { cfg.teacher_coef / n_labelled as f32 } else { 0.0 };
         struct Part {
             grad: Vec<f32>,
             surr: f32,
             value: f32,
+            imitation: f32,
             mu: Vec<f32>,
             ratios: Vec<f32>,
         }
@@ -409,7 +421,7 @@ impl FastMlp {
                     let mut dmu = vec![0.0f32; r * act];
                     let mut dv = vec![0.0f32; r];
                     let mut grad = vec![0.0f32; self.params.len()];
-                    let (mut surr_sum, mut value_sum) = (0.0f32, 0.0f32);
+                    let (mut surr_sum, mut value_sum, mut imitation) = (0.0f32, 0.0f32, 0.0f32);
                     let mut ratios = Vec::with_capacity(r);
                     for i in 0..r {
                         let k = lo + i;
@@ -433,6 +445,13 @@ impl FastMlp {
                             let bound = (m - SOFT_BOUND).max(0.0) + (m + SOFT_BOUND).min(0.0);
                             dmu[i * act + j] = g_logp * z / std[j] + cfg.bounds_loss_coef * 2.0 * bound * inv;
                             grad[self.log_std + j] += g_logp * (z * z - 1.0);
+                        }
+                        if labelled(k) {
+                            for j in 0..act {
+                                let diff = mu[i * act + j] - batch.teacher[k * act + j];
+                                imitation += diff * diff;
+                                dmu[i * act + j] += teach * 2.0 * diff;
+                            }
                         }
                         // Value loss and its gradient.
                         let (val, ret, old) = (v[i], batch.returns[k], batch.old_values[k]);
@@ -466,17 +485,18 @@ impl FastMlp {
                         self.backward_trunk(&self.critic, &hc, dhc, r, &mut grad);
                     }
                     self.backward_trunk(&self.actor, &ha, dha, r, &mut grad);
-                    Part { grad, surr: surr_sum, value: value_sum, mu, ratios }
+                    Part { grad, surr: surr_sum, value: value_sum, imitation, mu, ratios }
                 })
                 .collect()
         });
         let mut grad = vec![0.0f32; self.params.len()];
         let mut report = LossReport::default();
-        let (mut surr, mut value) = (0.0f32, 0.0f32);
+        let (mut surr, mut value, mut imitation) = (0.0f32, 0.0f32, 0.0f32);
         for p in parts {
             grad.iter_mut().zip(&p.grad).for_each(|(g, x)| *g += x);
             surr += p.surr;
             value += p.value;
+            imitation += p.imitation;
             report.mu.extend(p.mu);
             report.ratios.extend(p.ratios);
         }
@@ -487,6 +507,7 @@ impl FastMlp {
         }
         report.policy_loss = -surr * inv;
         report.value_loss = value * inv;
+        report.teacher_loss = if n_labelled > 0 { imitation / n_labelled as f32 } else { 0.0 };
         report.grad_norm = grad.iter().map(|g| g * g).sum::<f32>().sqrt();
         (report, grad)
     }
@@ -582,8 +603,20 @@ mod tests {
             let advantages = random(&mut rng, rows, 1.0);
             let returns = random(&mut rng, rows, 1.0);
             let old_values = random(&mut rng, rows, 0.5);
-            let loss_cfg =
-                LossConfig { e_clip: 0.2, clip_value, critic_coef: 2.0, entropy_coef: 0.01, bounds_loss_coef: 0.5 };
+            // A teacher labels every third row (the rest NaN) in two of the cases.
+            let mut teacher = random(&mut rng, rows * act_dim, 0.7);
+            for k in (0..rows).filter(|k| k % 3 != 0) {
+                teacher[k * act_dim..(k + 1) * act_dim].fill(f32::NAN);
+            }
+            let teacher = if case == 1 { Vec::new() } else { teacher };
+            let loss_cfg = LossConfig {
+                e_clip: 0.2,
+                clip_value,
+                critic_coef: 2.0,
+                entropy_coef: 0.01,
+                bounds_loss_coef: 0.5,
+                teacher_coef: 0.8,
+            };
             let batch = Batch {
                 obs: &obs,
                 actions: &actions,
@@ -591,6 +624,7 @@ mod tests {
                 advantages: &advantages,
                 returns: &returns,
                 old_values: &old_values,
+                teacher: &teacher,
             };
             let (report, grad) = fast.loss_and_grad(&batch, &loss_cfg);
 
@@ -608,6 +642,7 @@ mod tests {
                     advantages: t1(&advantages),
                     returns: t1(&returns),
                     old_values: t1(&old_values),
+                    teacher: BurnBatch::teacher(&teacher, act_dim, &device),
                 },
                 &loss_cfg,
             );
@@ -617,6 +652,9 @@ mod tests {
             close(report.policy_loss, l.policy.clone().into_scalar::<f32>(), "policy loss");
             close(report.value_loss, l.value.clone().into_scalar::<f32>(), "value loss");
             close(report.entropy, l.entropy.clone().into_scalar::<f32>(), "entropy");
+            let imitation = l.teacher.clone().map_or(0.0, |t| t.into_scalar::<f32>());
+            close(report.teacher_loss, imitation, "imitation loss");
+            assert_eq!(report.teacher_loss > 0.0, case != 1, "case {case}: the teacher term is on where labelled");
             let ratios = l.ratio.clone().into_data().try_to_vec::<f32>().unwrap();
             assert!(ratios.iter().any(|r| *r > 1.2) && ratios.iter().any(|r| *r < 0.8), "both clip sides exercised");
             let grads = GradientsParams::from_grads(l.total.backward(), &model);

@@ -10,6 +10,7 @@ pub mod plots;
 pub mod ppo;
 pub mod rollout;
 pub mod run;
+pub mod teacher;
 pub mod tensorboard;
 
 pub use config::{RunConfig, load_run_config};

@@ -8,6 +8,7 @@ use crate::config::{LrSchedule, PpoConfig};
 use crate::fast::{AdamState, Batch, FastMlp, LossConfig};
 use crate::gae::compute_gae;
 use crate::rollout::RolloutBuffer;
+use crate::teacher::Teacher;
 use burn::module::{ModuleVisitor, Param, ParamId};
 use burn::nn::LstmState;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
@@ -42,6 +43,8 @@ pub struct UpdateStats {
     pub clip_fraction: f32,
     /// Learning rate after the update.
     pub learning_rate: f32,
+    /// Mean squared distance of the means from a teacher's actions (0 without one).
+    pub teacher_loss: f32,
 }
 
 /// The learner: network, optimiser, normalisers, rollout storage.
@@ -69,6 +72,9 @@ pub struct Ppo {
     /// The hand-written learner (feed-forward networks on the CPU); `None` when burn learns.
     /// While it exists its parameters are the network's, copied into `model` after each update.
     fast: Option<FastMlp>,
+    /// Kickstarting: the teacher and the imitation weight of this epoch.
+    teacher: Option<Teacher>,
+    teacher_weight: f32,
 }
 
 /// Gradient-norm clipping over all parameters together (burn's own clipping is per tensor).
@@ -116,6 +122,22 @@ pub(crate) struct BurnBatch {
     pub advantages: Tensor<1>,
     pub returns: Tensor<1>,
     pub old_values: Tensor<1>,
+    /// Teacher actions (0 where unlabelled), the labelled-row mask and the labelled count.
+    pub teacher: Option<(Tensor<2>, Tensor<1>, usize)>,
+}
+
+impl BurnBatch {
+    /// The teacher part of a batch from actions `[rows][act]` with NaN rows unlabelled
+    /// (`None` when no row is labelled).
+    pub(crate) fn teacher(labels: &[f32], act: usize, device: &Device) -> Option<(Tensor<2>, Tensor<1>, usize)> {
+        let rows = labels.len() / act.max(1);
+        let mask: Vec<f32> = (0..rows).map(|k| if labels[k * act].is_finite() { 1.0 } else { 0.0 }).collect();
+        let n = mask.iter().filter(|m| **m > 0.0).count();
+        (n > 0).then(|| {
+            let zeroed: Vec<f32> = labels.iter().map(|x| if x.is_finite() { *x } else { 0.0 }).collect();
+            (tensor2(zeroed, rows, act, device), tensor1(mask, device), n)
+        })
+    }
 }
 
 /// The PPO loss and its parts, as burn tensors.
@@ -125,10 +147,13 @@ pub(crate) struct BurnLoss {
     pub value: Tensor<1>,
     pub entropy: Tensor<1>,
     pub ratio: Tensor<1>,
+    /// Mean squared distance from the teacher's actions on labelled rows.
+    pub teacher: Option<Tensor<1>>,
 }
 
 /// The PPO loss of means `mu`, values `v` and `log_std` on `batch`: clipped surrogate, (clipped)
-/// value loss, entropy bonus, bounds loss. The hand-written learner computes the same.
+/// value loss, entropy bonus, bounds loss, imitation of a teacher. The hand-written learner
+/// computes the same.
 pub(crate) fn burn_loss(
     mu: Tensor<2>,
     v: Tensor<1>,
@@ -136,7 +161,10 @@ pub(crate) fn burn_loss(
     batch: BurnBatch,
     cfg: &LossConfig,
 ) -> BurnLoss {
-    let BurnBatch { actions, old_log_probs, advantages: adv, returns: ret, old_values: old_v } = batch;
+    let BurnBatch { actions, old_log_probs, advantages: adv, returns: ret, old_values: old_v, teacher } = batch;
+    let teacher = teacher.map(|(target, mask, n)| {
+        ((mu.clone() - target).powf_scalar(2.0).sum_dim(1).squeeze_dim::<1>(1) * mask).sum() / n as f32
+    });
     let log_std2 = log_std.clone().unsqueeze::<2>();
     let z = (actions - mu.clone()) / log_std2.clone().exp();
     let logp: Tensor<1> = (z.powf_scalar(2.0) * -0.5 - log_std2 - HALF_LN_2PI).sum_dim(1).squeeze_dim(1);
@@ -155,9 +183,12 @@ pub(crate) fn burn_loss(
         + (mu + SOFT_BOUND).clamp_max(0.0).powf_scalar(2.0))
     .sum_dim(1)
     .mean();
-    let total = policy.clone() + value.clone() * (0.5 * cfg.critic_coef) - entropy.clone() * cfg.entropy_coef
+    let mut total = policy.clone() + value.clone() * (0.5 * cfg.critic_coef) - entropy.clone() * cfg.entropy_coef
         + bounds * cfg.bounds_loss_coef;
-    BurnLoss { total, policy, value, entropy, ratio }
+    if let Some(t) = &teacher {
+        total = total + t.clone() * cfg.teacher_coef;
+    }
+    BurnLoss { total, policy, value, entropy, ratio, teacher }
 }
 
 impl Ppo {
@@ -190,7 +221,20 @@ impl Ppo {
             state: (units > 0).then(|| (vec![0.0; cfg.num_actors * units], vec![0.0; cfg.num_actors * units])),
             act_dim,
             fast,
+            teacher: cfg.teacher.as_ref().map(|t| Teacher::new(t, cfg.num_actors)),
+            teacher_weight: 0.0,
         }
+    }
+
+    /// Sets the imitation weight for `epoch` (`train.teacher`'s schedule); while it is 0 the
+    /// teacher labels nothing.
+    pub fn set_teacher_epoch(&mut self, epoch: usize) {
+        self.teacher_weight = self.cfg.teacher.as_ref().map_or(0.0, |t| t.weight_at(epoch));
+    }
+
+    /// The imitation weight of this epoch.
+    pub fn teacher_weight(&self) -> f32 {
+        self.teacher_weight
     }
 
     /// The network (on the autodiff device).
@@ -311,6 +355,11 @@ impl Ppo {
                 self.buffer.hiddens[k * n * units..(k + 1) * n * units].copy_from_slice(h);
             }
             self.buffer.obs[t * n * d..(t + 1) * n * d].copy_from_slice(&obs);
+            let labels = &mut self.buffer.teacher[t * n * a..(t + 1) * n * a];
+            match &mut self.teacher {
+                Some(teacher) if self.teacher_weight > 0.0 => teacher.label(env, labels, a),
+                _ => labels.fill(f32::NAN),
+            }
             let state = self.state.take();
             let (mu, values, next) = self.infer(&net, obs, state);
             self.state = next;
@@ -363,6 +412,9 @@ impl Ppo {
                 }
                 if let Some(s) = env.finished[e] {
                     episodes.push(s);
+                }
+                if done && let Some(teacher) = &mut self.teacher {
+                    teacher.episode_ended(e);
                 }
                 if done && let Some((c, h)) = &mut self.state {
                     c[e * units..(e + 1) * units].fill(0.0);
@@ -426,7 +478,9 @@ impl Ppo {
             critic_coef: self.cfg.critic_coef,
             entropy_coef: self.cfg.entropy_coef,
             bounds_loss_coef: self.cfg.bounds_loss_coef,
+            teacher_coef: self.teacher_weight,
         };
+        let teach = self.teacher_weight > 0.0;
         let mut stats = UpdateStats::default();
         let mut count = 0.0f32;
         for _ in 0..self.cfg.mini_epochs {
@@ -452,9 +506,13 @@ impl Ppo {
                     Vec::with_capacity(rows),
                 );
                 let mut starts = Vec::with_capacity(rows);
+                let mut teacher = Vec::with_capacity(if teach { rows * a } else { 0 });
                 for s in 0..seq {
                     for &item in chunk {
                         let i = index(item, s);
+                        if teach {
+                            teacher.extend_from_slice(&self.buffer.teacher[i * a..(i + 1) * a]);
+                        }
                         obs.extend_from_slice(&self.buffer.obs[i * d..(i + 1) * d]);
                         act.extend_from_slice(&self.buffer.actions[i * a..(i + 1) * a]);
                         old_mu_v.extend_from_slice(&self.buffer.mus[i * a..(i + 1) * a]);
@@ -481,9 +539,10 @@ impl Ppo {
                         advantages: &adv,
                         returns: &ret,
                         old_values: &old_v,
+                        teacher: &teacher,
                     };
                     let r = fast.step(&batch, &loss_cfg, lr, max_norm);
-                    (r.mu, ls, r.ratios, [r.policy_loss, r.value_loss, r.entropy])
+                    (r.mu, ls, r.ratios, [r.policy_loss, r.value_loss, r.entropy, r.teacher_loss])
                 } else {
                     let dev = self.device.clone();
                     let (mu, v) = if units > 0 {
@@ -518,6 +577,7 @@ impl Ppo {
                         advantages: tensor1(adv, &dev),
                         returns: tensor1(ret, &dev),
                         old_values: tensor1(old_v, &dev),
+                        teacher: BurnBatch::teacher(&teacher, a, &dev),
                     };
                     let log_std = self.model().log_std.val();
                     let l = burn_loss(mu.clone(), v, log_std.clone(), batch, &loss_cfg);
@@ -535,8 +595,12 @@ impl Ppo {
                     self.model = Some(self.optim.step(lr as f64, model, grads));
                     // Values read after the backward pass (burn's tape allows one backward,
                     // and detach() would cut the graph the loss needs).
-                    let losses =
-                        [l.policy.into_scalar::<f32>(), l.value.into_scalar::<f32>(), l.entropy.into_scalar::<f32>()];
+                    let losses = [
+                        l.policy.into_scalar::<f32>(),
+                        l.value.into_scalar::<f32>(),
+                        l.entropy.into_scalar::<f32>(),
+                        l.teacher.map_or(0.0, |t| t.into_scalar::<f32>()),
+                    ];
                     (to_vec(mu), to_vec(log_std), to_vec(l.ratio), losses)
                 };
 
@@ -566,6 +630,7 @@ impl Ppo {
                 stats.policy_loss += losses[0];
                 stats.value_loss += losses[1];
                 stats.entropy += losses[2];
+                stats.teacher_loss += losses[3];
                 stats.kl += kl;
                 stats.clip_fraction += clipped;
                 count += 1.0;
@@ -578,6 +643,7 @@ impl Ppo {
         stats.policy_loss /= count;
         stats.value_loss /= count;
         stats.entropy /= count;
+        stats.teacher_loss /= count;
         stats.kl /= count;
         stats.clip_fraction /= count;
         stats.learning_rate = self.lr;

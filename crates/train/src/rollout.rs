@@ -36,6 +36,8 @@ pub struct RolloutBuffer {
     pub cells: Vec<f32>,
     /// See `cells`.
     pub hiddens: Vec<f32>,
+    /// A teacher's actions `[t][env][act]` (NaN where it gave none; see `crate::teacher`).
+    pub teacher: Vec<f32>,
 }
 
 impl RolloutBuffer {
@@ -67,6 +69,7 @@ impl RolloutBuffer {
             returns: vec![0.0; n],
             cells: vec![0.0; seqs * n_envs * lstm_units],
             hiddens: vec![0.0; seqs * n_envs * lstm_units],
+            teacher: vec![f32::NAN; n * act_dim],
         }
     }
 

@@ -370,7 +370,7 @@ impl Window {
     }
 }
 
-const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate,sim_s,rollout_s,update_s,heldout_success_rate,heldout_collision_rate,difficulty";
+const CSV_HEADER: &str = "epoch,env_steps,wall_s,steps_per_s,mean_return,mean_length,success_rate,collision_rate,timeout_rate,episodes,policy_loss,value_loss,kl,learning_rate,entropy,clip_fraction,stage,eval_success_rate,eval_collision_rate,eval_timeout_rate,sim_s,rollout_s,update_s,heldout_success_rate,heldout_collision_rate,difficulty,teacher_loss";
 
 fn csv_row(r: &EpochReport) -> String {
     let u = &r.update;
@@ -384,7 +384,7 @@ fn csv_row(r: &EpochReport) -> String {
     };
     let difficulty = r.difficulty.map(|d| format!("{d:.4}")).unwrap_or_default();
     format!(
-        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et},{:.4},{:.4},{:.4},{hs},{hc},{difficulty}",
+        "{},{},{:.3},{:.1},{},{},{},{},{},{},{},{},{},{},{},{},{},{es},{ec},{et},{:.4},{:.4},{:.4},{hs},{hc},{difficulty},{}",
         r.epoch,
         r.env_steps,
         r.wall_s,
@@ -404,7 +404,8 @@ fn csv_row(r: &EpochReport) -> String {
         r.stage,
         r.sim_s,
         r.rollout_s,
-        r.update_s
+        r.update_s,
+        u.teacher_loss
     )
 }
 
@@ -582,6 +583,7 @@ pub fn train(
         let t0 = Instant::now();
         ppo.reseed(cfg.seed, st.epoch as u64);
         ppo.schedule(st.epoch);
+        ppo.set_teacher_epoch(st.epoch);
         episodes.clear();
         ppo.collect(&mut env, &mut episodes)?;
         let t1 = Instant::now();
@@ -659,6 +661,9 @@ pub fn train(
         ];
         if let Some(d) = report.difficulty {
             scalars.push(("curriculum/difficulty", d));
+        }
+        if cfg.train.teacher.is_some() {
+            scalars.extend([("losses/teacher", update.teacher_loss), ("info/teacher_weight", ppo.teacher_weight())]);
         }
         if let Some(e) = &report.eval {
             scalars.extend([("eval/success_rate", e.success_rate), ("eval/collision_rate", e.collision_rate)]);
