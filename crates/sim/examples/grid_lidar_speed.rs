@@ -65,6 +65,12 @@ fn main() {
         for i in 0..n {
             let f = if out[i].is_finite() { out[i] } else { limit };
             let w = walk[k * n + i].max(lidar.spec().range_min);
+            if (f - w).abs() > 1e-2 && std::env::var_os("DEBUG").is_some() {
+                let a = p.yaw + lidar.spec().beam_angle(i);
+                let d = Vec2::new(a.cos(), a.sin());
+                let g = |t: f32| grid.origin().to_local(p.position() + d * t) / grid.resolution();
+                println!("pose {p:?} beam {i}: scan {f} ({:?}) walk {w} ({:?})", g(f), g(w));
+            }
             worst = worst.max((f - w).abs());
             longer = longer.max(f - w);
         }

@@ -192,11 +192,9 @@ const BEAM_MARGIN: f32 = 1e-4;
 #[inline]
 fn approx_atan2(y: f32, x: f32) -> f32 {
     let (ax, ay) = (x.abs(), y.abs());
-    let (lo, hi) = if ax < ay { (ax, ay) } else { (ay, ax) };
-    if hi == 0.0 {
-        return 0.0;
-    }
-    let a = lo / hi;
+    let (lo, hi) = (ax.min(ay), ax.max(ay));
+    // No branch (so that loops over many angles vectorise): 0 / tiny is 0 at the origin.
+    let a = lo / hi.max(f32::MIN_POSITIVE);
     let s = a * a;
     let mut r = a
         * (1.0
@@ -213,6 +211,10 @@ fn approx_atan2(y: f32, x: f32) -> f32 {
     }
     if y < 0.0 { -r } else { r }
 }
+
+/// Grid edges whose beam ranges are worked out together, in a loop LLVM vectorises, before
+/// their beams are tested (TurtleBot3 map scans 1.25x faster, `examples/grid_lidar_speed.rs`).
+const EDGE_BATCH: usize = 16;
 
 /// A lidar ready to cast: the spec plus precomputed beam directions.
 #[derive(Clone, Debug)]
@@ -259,14 +261,27 @@ impl Lidar {
     /// [`BEAM_MARGIN`] on each side so that rounding never drops a beam. Each beam is visited
     /// at most once.
     #[inline]
-    fn for_beams(&self, lo: f32, width: f32, mut f: impl FnMut(usize)) {
-        let n = self.spec.beams as i64;
+    fn for_beams(&self, lo: f32, width: f32, f: impl FnMut(usize)) {
+        let (a, b) = self.beam_interval(lo, width);
+        self.for_beam_indices(a, b, f);
+    }
+
+    /// The interval of [`Self::for_beams`] in beam indices, `a` in `[-1, beams)` for a full
+    /// circle (a fraction of a turn beyond for partial ones). No branch: it runs in vectorised
+    /// loops over many edges.
+    #[inline]
+    fn beam_interval(&self, lo: f32, width: f32) -> (f32, f32) {
         // Whole turns off by truncation (`rem_euclid`, `floor` and `ceil` are library calls on
-        // baseline x86-64 and were a tenth of a grid scan). The interval, in beam indices, may
-        // then reach past a turn at either end: the beams a turn on either side are visited too.
-        let turns = (lo * (1.0 / TAU)) as i64 - i64::from(lo < 0.0);
+        // baseline x86-64 and were a tenth of a grid scan).
+        let turns = (lo * (1.0 / TAU)) as i32 - i32::from(lo < 0.0);
         let a = (lo - turns as f32 * TAU - BEAM_MARGIN) * self.inv_increment;
-        let b = a + (width + 2.0 * BEAM_MARGIN) * self.inv_increment;
+        (a, a + (width + 2.0 * BEAM_MARGIN) * self.inv_increment)
+    }
+
+    /// Calls `f(i)` for every beam index in `[a, b]` from [`Self::beam_interval`], each once.
+    #[inline]
+    fn for_beam_indices(&self, a: f32, b: f32, mut f: impl FnMut(usize)) {
+        let n = self.spec.beams as i64;
         if self.full_circle {
             // One range of indices, wrapped once: `a` lies in [-1, n), the range is under half
             // a turn long.
@@ -284,6 +299,8 @@ impl Lidar {
             }
             return;
         }
+        // The interval may reach past a turn at either end: the beams a turn on either side
+        // are visited too.
         let turn = TAU * self.inv_increment;
         for shift in [0.0, -turn, turn] {
             let (a, b) = (a + shift, b + shift);
@@ -393,49 +410,48 @@ impl Lidar {
             let (ou, ov) = if horizontal { (o.x, o.y) } else { (o.y, o.x) };
             // The open side: beams must travel towards +v (Down, Left) or -v (Up, Right).
             let toward = if matches!(facing, EdgeFacing::Down | EdgeFacing::Left) { 1.0f32 } else { -1.0 };
-            for &[at, lo, hi] in edges {
-                // Distance across, positive on the open side.
-                let dv = (at - ov) * toward;
-                if dv <= 0.0 {
-                    continue; // back face
+            // Seen from the right (x > at) the ends straddle atan2's cut at ±π.
+            let wrap = facing == EdgeFacing::Right;
+            for batch in edges.chunks(EDGE_BATCH) {
+                // First pass, without branches (LLVM vectorises it): each edge's beams, from
+                // the angles of its ends. Both lie in the half-plane the edge faces, which for
+                // `Right` is brought into one turn.
+                let mut span = [(0.0f32, 0.0f32); EDGE_BATCH];
+                for (&[at, lo, hi], span) in batch.iter().zip(span.iter_mut()) {
+                    let (a, b) = if horizontal {
+                        (Vec2::new(lo - o.x, at - o.y), Vec2::new(hi - o.x, at - o.y))
+                    } else {
+                        (Vec2::new(at - o.x, lo - o.y), Vec2::new(at - o.x, hi - o.y))
+                    };
+                    let (mut ra, mut rb) = (approx_atan2(a.y, a.x), approx_atan2(b.y, b.x));
+                    if wrap {
+                        ra += if ra < 0.0 { TAU } else { 0.0 };
+                        rb += if rb < 0.0 { TAU } else { 0.0 };
+                    }
+                    *span = self.beam_interval(ra.min(rb) - base, (ra - rb).abs());
                 }
-                // The ends relative to the sensor.
-                let (a, b) = if horizontal {
-                    (Vec2::new(lo - o.x, at - o.y), Vec2::new(hi - o.x, at - o.y))
-                } else {
-                    (Vec2::new(at - o.x, lo - o.y), Vec2::new(at - o.x, hi - o.y))
-                };
-                let (cross, dot) = (a.perp_dot(b), a.dot(b));
-                let (from, width) = if dot > cross.abs() {
-                    // Under an eighth of a turn (most edges: one cell seen from afar): one
-                    // arctangent, and tan(width) >= width bounds the span from above (a beam
-                    // too many is rejected by the hit test below).
-                    let w = cross.abs() / dot;
-                    (if cross >= 0.0 { approx_atan2(a.y, a.x) } else { approx_atan2(b.y, b.x) }, w)
-                } else {
-                    let (ra, rb) = (approx_atan2(a.y, a.x), approx_atan2(b.y, b.x));
-                    let mut diff = rb - ra;
-                    if diff > PI {
-                        diff -= TAU;
-                    } else if diff < -PI {
-                        diff += TAU;
+                // Second pass: the beams of each edge that faces the sensor.
+                for (&[at, lo, hi], &(first, last)) in batch.iter().zip(&span) {
+                    // Distance across, positive on the open side.
+                    let dv = (at - ov) * toward;
+                    if dv <= 0.0 {
+                        continue; // back face
                     }
-                    if diff >= 0.0 { (ra, diff) } else { (rb, -diff) }
-                };
-                let (lo_u, hi_u) = (lo - ou, hi - ou);
-                self.for_beams(from - base, width, |i| {
-                    let w = dirs[i];
-                    let d = if aligned { w } else { Vec2::new(c * w.x + s * w.y, -s * w.x + c * w.y) };
-                    let (du, dv_beam) = if horizontal { (d.x, d.y) } else { (d.y, d.x) };
-                    // Along the beam towards the open side: t = dv / m > 0 (cell units).
-                    let m = dv_beam * toward;
-                    // The hit is u = ou + t du: inside [lo, hi] and nearer than out[i],
-                    // multiplied through by m > 0 so that only a hit divides.
-                    let u = dv * du;
-                    if m > 0.0 && u >= lo_u * m && u <= hi_u * m && dv * res < out[i] * m {
-                        out[i] = dv / m * res;
-                    }
-                });
+                    let (lo_u, hi_u) = (lo - ou, hi - ou);
+                    self.for_beam_indices(first, last, |i| {
+                        let w = dirs[i];
+                        let d = if aligned { w } else { Vec2::new(c * w.x + s * w.y, -s * w.x + c * w.y) };
+                        let (du, dv_beam) = if horizontal { (d.x, d.y) } else { (d.y, d.x) };
+                        // Along the beam towards the open side: t = dv / m > 0 (cell units).
+                        let m = dv_beam * toward;
+                        // The hit is u = ou + t du: inside [lo, hi] and nearer than out[i],
+                        // multiplied through by m > 0 so that only a hit divides.
+                        let u = dv * du;
+                        if m > 0.0 && u >= lo_u * m && u <= hi_u * m && dv * res < out[i] * m {
+                            out[i] = dv / m * res;
+                        }
+                    });
+                }
             }
         });
     }

@@ -614,15 +614,17 @@ impl OccupancyGrid {
 /// space enters its first blocked cell where it first crosses this outline from the open side,
 /// so casting against it gives [`OccupancyGrid::cast`]'s answers (tested) for all beams at once.
 ///
-/// Collinear cell edges are merged up to a tile border (16 x 16 cells). Each tile keeps its
-/// edges in four [`EdgeFacing`] classes by which side is open, so that a whole class facing
-/// away from the sensor is skipped without looking at its edges.
+/// Collinear cell edges are merged up to a tile border (16 x 16 cells). Edges are stored by
+/// row of tiles, then by [`EdgeFacing`] class (which side is open), then by tile, so that the
+/// edges of one class in a run of tiles of one row are one slice: a scan visits a few slices
+/// per row, and skips whole the classes that face away from the sensor there.
 #[derive(Clone, Debug, Default)]
 pub struct GridEdges {
     /// `[at, lo, hi]`: the edge on the line `y = at` (horizontal classes) or `x = at`
     /// (vertical ones) from `lo` to `hi` along the other axis, grid frame, cell units.
     edges: Vec<[f32; 3]>,
-    /// Tile `t`'s edges of class `c` are `edges[start[4 t + c]..start[4 t + c + 1]]`.
+    /// The edges of class `c` in tile `(tx, ty)` are `edges[start[k]..start[k + 1]]` with
+    /// `k = (4 ty + c) tiles_x + tx`.
     start: Vec<u32>,
     tiles_x: usize,
     tiles_y: usize,
@@ -653,7 +655,8 @@ impl GridEdges {
         let at = |x: usize, y: usize| blocked[y * width + x];
         let (tiles_x, tiles_y) = (width.div_ceil(EDGE_TILE), height.div_ceil(EDGE_TILE));
         let mut bins: Vec<Vec<[f32; 3]>> = vec![Vec::new(); 4 * tiles_x * tiles_y];
-        let tile_of = |x: usize, y: usize| (y / EDGE_TILE) * tiles_x + x / EDGE_TILE;
+        // The tile of cell (x, y), as its bin's index less the class's offset.
+        let tile_of = |x: usize, y: usize| 4 * (y / EDGE_TILE) * tiles_x + x / EDGE_TILE;
         // Runs of cell edges along one grid line: `kind(i)` gives the class and the tile (of the
         // blocked cell) of the edge at step `i` along the line, if it is on the outline;
         // consecutive edges of one kind merge (so a run ends at a tile border).
@@ -668,7 +671,7 @@ impl GridEdges {
                 while i < n && kind(i) == Some((facing, tile)) {
                     i += 1;
                 }
-                bins[4 * tile + facing as usize].push([line as f32, start as f32, i as f32]);
+                bins[tile + facing as usize * tiles_x].push([line as f32, start as f32, i as f32]);
             }
         };
         // Horizontal grid lines y = 0..=height: a blocked cell above and an open one below is
@@ -719,51 +722,50 @@ impl GridEdges {
         self.edges.is_empty()
     }
 
-    /// Calls `f(facing, edges)` for the edges of every tile that comes within `reach` of the
-    /// grid point `g` (grid frame, cell units), class by class, skipping the classes whose
-    /// edges in that tile all face away from `g` (callers still test each edge's side: a tile
-    /// is only culled whole).
+    /// Calls `f(facing, edges)` with the edges of the tiles that come within `reach` of the
+    /// grid point `g` (grid frame, cell units), a slice per row of tiles and class, leaving out
+    /// the tiles where that class faces away from `g` (callers still test each edge's side).
     #[inline]
     pub fn near(&self, g: Vec2, reach: f32, mut f: impl FnMut(EdgeFacing, &[[f32; 3]])) {
         if self.edges.is_empty() {
             return;
         }
         let t = EDGE_TILE as f32;
-        let (gx, gy) = (g.x / t, g.y / t);
-        let r = reach / t;
-        // `floor` of values >= -1 by truncation (`floorf` is a library call on baseline x86-64).
-        let range = |v: f32, n: usize| {
-            let (lo, hi) = ((v - r).max(0.0) as usize, (v + r).max(-1.0));
-            let hi = if hi < 0.0 { return None } else { (hi as usize).min(n - 1) };
-            (lo <= hi).then_some((lo, hi))
-        };
-        let (Some((x0, x1)), Some((y0, y1))) = (range(gx, self.tiles_x), range(gy, self.tiles_y)) else {
+        // Tile index of a coordinate (cell units), clamped to `[0, n)`; `floor` by truncation
+        // of a non-negative value (`floorf` is a library call on baseline x86-64).
+        let tile = |v: f32, n: usize| ((v / t).max(0.0) as usize).min(n - 1);
+        let (y_lo, y_hi) = (g.y - reach, g.y + reach);
+        if y_hi < 0.0 || y_lo > (self.tiles_y * EDGE_TILE) as f32 {
             return;
-        };
-        let r2 = reach * reach;
-        for ty in y0..=y1 {
-            // The tile's extent in cells (edges on its far border belong to it too).
+        }
+        let gtx = tile(g.x, self.tiles_x);
+        for ty in tile(y_lo, self.tiles_y)..=tile(y_hi, self.tiles_y) {
             let (ylo, yhi) = ((ty * EDGE_TILE) as f32, ((ty + 1) * EDGE_TILE) as f32);
+            // The disc's extent along this row of tiles.
             let dy = (ylo - g.y).max(g.y - yhi).max(0.0);
-            for tx in x0..=x1 {
-                let (xlo, xhi) = ((tx * EDGE_TILE) as f32, ((tx + 1) * EDGE_TILE) as f32);
-                let dx = (xlo - g.x).max(g.x - xhi).max(0.0);
-                if dx * dx + dy * dy >= r2 {
+            let half = (reach * reach - dy * dy).max(0.0).sqrt();
+            let (x_lo, x_hi) = (g.x - half, g.x + half);
+            if x_hi < 0.0 || x_lo > (self.tiles_x * EDGE_TILE) as f32 {
+                continue;
+            }
+            let (x0, x1) = (tile(x_lo, self.tiles_x), tile(x_hi, self.tiles_x));
+            for facing in EdgeFacing::ALL {
+                // The tiles of the row where this class may face `g`: a horizontal class in
+                // the whole row or none, a vertical one from `g`'s column on.
+                let (a, b) = match facing {
+                    EdgeFacing::Down if g.y < yhi => (x0, x1),
+                    EdgeFacing::Up if g.y > ylo => (x0, x1),
+                    EdgeFacing::Left => (x0.max(gtx), x1),
+                    EdgeFacing::Right => (x0, x1.min(gtx)),
+                    _ => continue,
+                };
+                if a > b {
                     continue;
                 }
-                let base = 4 * (ty * self.tiles_x + tx);
-                for facing in EdgeFacing::ALL {
-                    let seen = match facing {
-                        EdgeFacing::Down => g.y < yhi,
-                        EdgeFacing::Up => g.y > ylo,
-                        EdgeFacing::Left => g.x < xhi,
-                        EdgeFacing::Right => g.x > xlo,
-                    };
-                    let (a, b) =
-                        (self.start[base + facing as usize] as usize, self.start[base + facing as usize + 1] as usize);
-                    if seen && a < b {
-                        f(facing, &self.edges[a..b]);
-                    }
+                let row = (4 * ty + facing as usize) * self.tiles_x;
+                let (s, e) = (self.start[row + a] as usize, self.start[row + b + 1] as usize);
+                if s < e {
+                    f(facing, &self.edges[s..e]);
                 }
             }
         }

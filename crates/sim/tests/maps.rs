@@ -585,7 +585,8 @@ fn known_clearance_counts_unknown_cells_even_when_they_are_open() {
 }
 
 /// The shipped maps (a drawn warehouse; ROBOTIS's map_saver map with its unknown space): the
-/// lidar's outline cast equals the cell walk from poses all over the known free space.
+/// lidar's outline cast equals the cell walk from poses all over the known free space, and no
+/// beam ever reads more than 1 mm longer than the walk (a long reading would hide a wall).
 #[test]
 fn lidar_on_the_shipped_maps_equals_the_cell_walk() {
     for name in ["warehouse", "turtlebot3-world"] {
@@ -597,7 +598,7 @@ fn lidar_on_the_shipped_maps_equals_the_cell_walk() {
             let lidar = Lidar::new(LidarSpec { beams: 360, range_max, ..Default::default() });
             let (mut dirs, mut fast, mut walk) = (vec![Vec2::ZERO; 360], vec![0.0; 360], vec![0.0; 360]);
             let (mut poses, mut mismatches) = (0, 0);
-            while poses < 300 {
+            while poses < 1000 {
                 let p = Vec2::new(rng.random_range(b.min.x..b.max.x), rng.random_range(b.min.y..b.max.y));
                 if !g.is_known_free(p) || g.clearance(p) < 0.05 {
                     continue;
@@ -612,11 +613,12 @@ fn lidar_on_the_shipped_maps_equals_the_cell_walk() {
                         same_hit(&g, sensor, dirs[i], *f, *w),
                         "{name} beam {i} at {pose:?}: outline {f}, walk {w}"
                     );
+                    assert!(*f <= w + 1e-3, "{name} beam {i} at {pose:?}: outline {f} longer than walk {w}");
                     mismatches += usize::from((f - w).abs() > 1e-5 * f.max(*w).max(1.0));
                 }
             }
             // Rounding differences are rare: grazing beams only.
-            assert!(mismatches < 300 * 360 / 200, "{name}: {mismatches} of {} beams differ", 300 * 360);
+            assert!(mismatches < 1000 * 360 / 200, "{name}: {mismatches} of {} beams differ", 1000 * 360);
         }
     }
 }
