@@ -11,7 +11,7 @@
 
 use crate::config::{Invalid, Validate, check_range};
 use crate::geometry::{Pose2, Primitive, Vec2, point_segment_distance};
-use crate::map::OccupancyGrid;
+use crate::map::{EdgeFacing, OccupancyGrid};
 use crate::world::World;
 use parry2d::query::Ray;
 use rand::RngExt;
@@ -110,7 +110,7 @@ pub struct RayGeometry {
     circles: Vec<(Vec2, f32)>,
     groups: Vec<SegmentGroup>,
     segments: Vec<(Vec2, Vec2)>,
-    /// An occupancy-grid map, cast exactly cell by cell.
+    /// An occupancy-grid map, cast against its outline (see [`Lidar::scan_layers`]).
     grid: Option<Arc<OccupancyGrid>>,
 }
 
@@ -192,11 +192,9 @@ const BEAM_MARGIN: f32 = 1e-4;
 #[inline]
 fn approx_atan2(y: f32, x: f32) -> f32 {
     let (ax, ay) = (x.abs(), y.abs());
-    let (lo, hi) = if ax < ay { (ax, ay) } else { (ay, ax) };
-    if hi == 0.0 {
-        return 0.0;
-    }
-    let a = lo / hi;
+    let (lo, hi) = (ax.min(ay), ax.max(ay));
+    // No branch (so that loops over many angles vectorise): 0 / tiny is 0 at the origin.
+    let a = lo / hi.max(f32::MIN_POSITIVE);
     let s = a * a;
     let mut r = a
         * (1.0
@@ -214,6 +212,10 @@ fn approx_atan2(y: f32, x: f32) -> f32 {
     if y < 0.0 { -r } else { r }
 }
 
+/// Grid edges whose beam ranges are worked out together, in a loop LLVM vectorises, before
+/// their beams are tested (TurtleBot3 map scans 1.25x faster, `examples/grid_lidar_speed.rs`).
+const EDGE_BATCH: usize = 16;
+
 /// A lidar ready to cast: the spec plus precomputed beam directions.
 #[derive(Clone, Debug)]
 pub struct Lidar {
@@ -221,6 +223,8 @@ pub struct Lidar {
     /// Unit beam directions in the sensor frame.
     local_dirs: Vec<Vec2>,
     inv_increment: f32,
+    /// Whether the beams cover a full turn (beam `n` would be beam 0).
+    full_circle: bool,
 }
 
 impl Lidar {
@@ -233,7 +237,8 @@ impl Lidar {
                 Vec2::new(c, s)
             })
             .collect();
-        Self { spec, local_dirs, inv_increment: 1.0 / inc }
+        let full_circle = spec.is_full_circle();
+        Self { spec, local_dirs, inv_increment: 1.0 / inc, full_circle }
     }
 
     /// The spec.
@@ -256,14 +261,46 @@ impl Lidar {
     /// [`BEAM_MARGIN`] on each side so that rounding never drops a beam. Each beam is visited
     /// at most once.
     #[inline]
-    fn for_beams(&self, lo: f32, width: f32, mut f: impl FnMut(usize)) {
-        let n = self.spec.beams as i64;
+    fn for_beams(&self, lo: f32, width: f32, f: impl FnMut(usize)) {
+        let (a, b) = self.beam_interval(lo, width);
+        self.for_beam_indices(a, b, f);
+    }
+
+    /// The interval of [`Self::for_beams`] in beam indices, `a` in `[-1, beams)` for a full
+    /// circle (a fraction of a turn beyond for partial ones). No branch: it runs in vectorised
+    /// loops over many edges.
+    #[inline]
+    fn beam_interval(&self, lo: f32, width: f32) -> (f32, f32) {
         // Whole turns off by truncation (`rem_euclid`, `floor` and `ceil` are library calls on
-        // baseline x86-64 and were a tenth of a grid scan). The interval, in beam indices, may
-        // then reach past a turn at either end: the beams a turn on either side are visited too.
-        let turns = (lo * (1.0 / TAU)) as i64 - i64::from(lo < 0.0);
+        // baseline x86-64 and were a tenth of a grid scan).
+        let turns = (lo * (1.0 / TAU)) as i32 - i32::from(lo < 0.0);
         let a = (lo - turns as f32 * TAU - BEAM_MARGIN) * self.inv_increment;
-        let b = a + (width + 2.0 * BEAM_MARGIN) * self.inv_increment;
+        (a, a + (width + 2.0 * BEAM_MARGIN) * self.inv_increment)
+    }
+
+    /// Calls `f(i)` for every beam index in `[a, b]` from [`Self::beam_interval`], each once.
+    #[inline]
+    fn for_beam_indices(&self, a: f32, b: f32, mut f: impl FnMut(usize)) {
+        let n = self.spec.beams as i64;
+        if self.full_circle {
+            // One range of indices, wrapped once: `a` lies in [-1, n), the range is under half
+            // a turn long.
+            let (ai, bi) = (a as i64, b as i64);
+            let first = if (ai as f32) < a { ai + 1 } else { ai }; // ceil(a)
+            let last = if (bi as f32) > b { bi - 1 } else { bi }; // floor(b)
+            for k in first..=last {
+                f(if k < 0 {
+                    k + n
+                } else if k >= n {
+                    k - n
+                } else {
+                    k
+                } as usize);
+            }
+            return;
+        }
+        // The interval may reach past a turn at either end: the beams a turn on either side
+        // are visited too.
         let turn = TAU * self.inv_increment;
         for shift in [0.0, -turn, turn] {
             let (a, b) = (a + shift, b + shift);
@@ -295,6 +332,10 @@ impl Lidar {
         out.fill(self.spec.range_max);
         for g in layers {
             self.cast(&sensor, g, dirs, out);
+        }
+        // Grids last: every beam a shape already stopped short is cheaper to cast.
+        for grid in layers.iter().filter_map(|g| g.grid.as_deref()) {
+            self.cast_grid(&sensor, grid, dirs, out);
         }
         self.finish(out);
     }
@@ -341,22 +382,78 @@ impl Lidar {
                 self.cast_segment(p, base, limit, a, b, g.one_sided, true, dirs, out);
             }
         }
+    }
 
-        if let Some(grid) = &geometry.grid {
-            if grid.blocks(p) {
-                // Inside a blocked cell: every ray stops at once, as the cell walk says.
-                out.fill(0.0);
-                return;
-            }
-            // The outline of the blocked cells near the sensor, seen from the open side: the
-            // same hits as walking each ray through the cells (tested), for a few segments per
-            // beam.
-            grid.edges().near(p, limit, |segments| {
-                for &(a, b) in segments {
-                    self.cast_segment(p, base, limit, a, b, true, true, dirs, out);
-                }
-            });
+    /// Lowers `out` (raw distances) to the hits on `grid`'s outline ([`GridEdges`]: the same
+    /// hits as walking each ray through the cells, tested). Works in the grid frame, in cell
+    /// units, where every edge is axis-aligned: a beam meets the edge on `y = at` at
+    /// `t = (at - o.y) / d.y`, and only the beams between the edge's ends are tested.
+    fn cast_grid(&self, sensor: &Pose2, grid: &OccupancyGrid, dirs: &[Vec2], out: &mut [f32]) {
+        let p = sensor.position();
+        if grid.blocks(p) {
+            // Inside a blocked cell: every ray stops at once, as the cell walk says.
+            out.fill(0.0);
+            return;
         }
+        let origin = grid.origin();
+        let inv_res = 1.0 / grid.resolution();
+        let o = origin.to_local(p) * inv_res;
+        // Beam angles relative to the grid's axes; each beam's direction is turned into the
+        // grid frame as the cell walk turns it (the same rounding).
+        let base = sensor.yaw - origin.yaw + self.spec.angle_min;
+        let (s, c) = origin.yaw.sin_cos();
+        let aligned = origin.yaw == 0.0;
+        let res = grid.resolution();
+        grid.edges().near(o, self.spec.range_max * inv_res, |facing, edges| {
+            let horizontal = matches!(facing, EdgeFacing::Down | EdgeFacing::Up);
+            // Sensor and beams in axes (u along the edge, v across it).
+            let (ou, ov) = if horizontal { (o.x, o.y) } else { (o.y, o.x) };
+            // The open side: beams must travel towards +v (Down, Left) or -v (Up, Right).
+            let toward = if matches!(facing, EdgeFacing::Down | EdgeFacing::Left) { 1.0f32 } else { -1.0 };
+            // Seen from the right (x > at) the ends straddle atan2's cut at ±π.
+            let wrap = facing == EdgeFacing::Right;
+            for batch in edges.chunks(EDGE_BATCH) {
+                // First pass, without branches (LLVM vectorises it): each edge's beams, from
+                // the angles of its ends. Both lie in the half-plane the edge faces, which for
+                // `Right` is brought into one turn.
+                let mut span = [(0.0f32, 0.0f32); EDGE_BATCH];
+                for (&[at, lo, hi], span) in batch.iter().zip(span.iter_mut()) {
+                    let (a, b) = if horizontal {
+                        (Vec2::new(lo - o.x, at - o.y), Vec2::new(hi - o.x, at - o.y))
+                    } else {
+                        (Vec2::new(at - o.x, lo - o.y), Vec2::new(at - o.x, hi - o.y))
+                    };
+                    let (mut ra, mut rb) = (approx_atan2(a.y, a.x), approx_atan2(b.y, b.x));
+                    if wrap {
+                        ra += if ra < 0.0 { TAU } else { 0.0 };
+                        rb += if rb < 0.0 { TAU } else { 0.0 };
+                    }
+                    *span = self.beam_interval(ra.min(rb) - base, (ra - rb).abs());
+                }
+                // Second pass: the beams of each edge that faces the sensor.
+                for (&[at, lo, hi], &(first, last)) in batch.iter().zip(&span) {
+                    // Distance across, positive on the open side.
+                    let dv = (at - ov) * toward;
+                    if dv <= 0.0 {
+                        continue; // back face
+                    }
+                    let (lo_u, hi_u) = (lo - ou, hi - ou);
+                    self.for_beam_indices(first, last, |i| {
+                        let w = dirs[i];
+                        let d = if aligned { w } else { Vec2::new(c * w.x + s * w.y, -s * w.x + c * w.y) };
+                        let (du, dv_beam) = if horizontal { (d.x, d.y) } else { (d.y, d.x) };
+                        // Along the beam towards the open side: t = dv / m > 0 (cell units).
+                        let m = dv_beam * toward;
+                        // The hit is u = ou + t du: inside [lo, hi] and nearer than out[i],
+                        // multiplied through by m > 0 so that only a hit divides.
+                        let u = dv * du;
+                        if m > 0.0 && u >= lo_u * m && u <= hi_u * m && dv * res < out[i] * m {
+                            out[i] = dv / m * res;
+                        }
+                    });
+                }
+            }
+        });
     }
 
     /// Lowers `out[i]` to where beam `i` meets the segment `a`-`b`, for the beams whose

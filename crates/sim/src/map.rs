@@ -294,7 +294,7 @@ impl OccupancyGrid {
             (not_free, cheb)
         });
         let rot = origin.yaw.sin_cos();
-        let edges = GridEdges::new(&blocked, width, height, resolution, &origin);
+        let edges = GridEdges::new(&blocked, width, height);
         Self {
             source: source.to_string(),
             width,
@@ -609,142 +609,164 @@ impl OccupancyGrid {
     }
 }
 
-/// The boundary between blocked and open cells (outside the grid is open) as line segments in
-/// world coordinates, each oriented with its blocked side on the left (as a counter-clockwise
-/// polygon's edges), so that the lidar's segment caster sees them from the open side only.
-/// Collinear cell edges are merged into one segment up to a tile border; segments are binned by
-/// the tile of their blocked cells, so a scan only visits the tiles within its range.
+/// The boundary between blocked and open cells (outside the grid is open) as axis-aligned
+/// edges in the grid frame, in cell units: what the lidar casts a grid against. A ray from open
+/// space enters its first blocked cell where it first crosses this outline from the open side,
+/// so casting against it gives [`OccupancyGrid::cast`]'s answers (tested) for all beams at once.
 ///
-/// A ray from open space stops where it first meets this outline, which is where it enters the
-/// first blocked cell: the same answer as [`OccupancyGrid::cast`]'s cell walk, at the cost of
-/// the polygon caster (a few segments per beam near the robot) instead of a walk per beam.
+/// Collinear cell edges are merged up to a tile border (16 x 16 cells). Edges are stored by
+/// row of tiles, then by [`EdgeFacing`] class (which side is open), then by tile, so that the
+/// edges of one class in a run of tiles of one row are one slice: a scan visits a few slices
+/// per row, and skips whole the classes that face away from the sensor there.
 #[derive(Clone, Debug, Default)]
 pub struct GridEdges {
-    /// `(a, b)` in world coordinates, grouped by tile (row-major).
-    segments: Vec<(Vec2, Vec2)>,
-    /// Tile `t`'s segments are `segments[tile_start[t]..tile_start[t + 1]]`.
-    tile_start: Vec<u32>,
+    /// `[at, lo, hi]`: the edge on the line `y = at` (horizontal classes) or `x = at`
+    /// (vertical ones) from `lo` to `hi` along the other axis, grid frame, cell units.
+    edges: Vec<[f32; 3]>,
+    /// The edges of class `c` in tile `(tx, ty)` are `edges[start[k]..start[k + 1]]` with
+    /// `k = (4 ty + c) tiles_x + tx`.
+    start: Vec<u32>,
     tiles_x: usize,
     tiles_y: usize,
-    /// The grid's pose, cell size and `origin.yaw`'s sine and cosine, to find tiles.
-    origin: Pose2,
-    resolution: f32,
-    rot: (f32, f32),
+}
+
+/// Which side of an outline edge is open: the side a ray must come from to hit it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EdgeFacing {
+    /// Horizontal, open below (a blocked cell's bottom edge): seen from `y < at`.
+    Down = 0,
+    /// Horizontal, open above (a blocked cell's top edge): seen from `y > at`.
+    Up = 1,
+    /// Vertical, open on the left (a blocked cell's left edge): seen from `x < at`.
+    Left = 2,
+    /// Vertical, open on the right (a blocked cell's right edge): seen from `x > at`.
+    Right = 3,
+}
+
+impl EdgeFacing {
+    const ALL: [EdgeFacing; 4] = [EdgeFacing::Down, EdgeFacing::Up, EdgeFacing::Left, EdgeFacing::Right];
 }
 
 /// Tile side in cells: about 0.8 m at 5 cm, so a 3.5 m lidar visits about 10 x 10 tiles.
 const EDGE_TILE: usize = 16;
 
 impl GridEdges {
-    fn new(blocked: &[bool], width: usize, height: usize, resolution: f32, origin: &Pose2) -> Self {
+    fn new(blocked: &[bool], width: usize, height: usize) -> Self {
         let at = |x: usize, y: usize| blocked[y * width + x];
         let (tiles_x, tiles_y) = (width.div_ceil(EDGE_TILE), height.div_ceil(EDGE_TILE));
-        let mut bins: Vec<Vec<(Vec2, Vec2)>> = vec![Vec::new(); tiles_x * tiles_y];
-        let to_world = |x: f32, y: f32| origin.to_parent(Vec2::new(x * resolution, y * resolution));
-        // Runs of cell edges along one grid line: `kind(i)` says whether the edge at step `i`
-        // belongs to the outline, its direction, and the tile of the blocked cell that owns it;
+        let mut bins: Vec<Vec<[f32; 3]>> = vec![Vec::new(); 4 * tiles_x * tiles_y];
+        // The tile of cell (x, y), as its bin's index less the class's offset.
+        let tile_of = |x: usize, y: usize| 4 * (y / EDGE_TILE) * tiles_x + x / EDGE_TILE;
+        // Runs of cell edges along one grid line: `kind(i)` gives the class and the tile (of the
+        // blocked cell) of the edge at step `i` along the line, if it is on the outline;
         // consecutive edges of one kind merge (so a run ends at a tile border).
-        let mut emit_runs = |n: usize,
-                             kind: &dyn Fn(usize) -> Option<(bool, usize)>,
-                             seg: &dyn Fn(usize, usize, bool) -> (Vec2, Vec2)| {
+        let mut emit_runs = |line: usize, n: usize, kind: &dyn Fn(usize) -> Option<(EdgeFacing, usize)>| {
             let mut i = 0;
             while i < n {
-                let Some((forward, tile)) = kind(i) else {
+                let Some((facing, tile)) = kind(i) else {
                     i += 1;
                     continue;
                 };
                 let start = i;
-                while i < n && kind(i) == Some((forward, tile)) {
+                while i < n && kind(i) == Some((facing, tile)) {
                     i += 1;
                 }
-                let (a, b) = seg(start, i, forward);
-                bins[tile].push((a, b));
+                bins[tile + facing as usize * tiles_x].push([line as f32, start as f32, i as f32]);
             }
         };
-        let tile_of = |x: usize, y: usize| (y / EDGE_TILE) * tiles_x + x / EDGE_TILE;
-        // Horizontal grid lines y = 0..=height: a blocked cell above and an open one below is the
-        // cell's bottom edge, run +x; blocked below and open above, its top edge, run -x.
+        // Horizontal grid lines y = 0..=height: a blocked cell above and an open one below is
+        // the blocked cell's bottom edge, seen from below; the other way round, its top edge.
         for y in 0..=height {
             let kind = |x: usize| {
                 let above = y < height && at(x, y);
                 let below = y > 0 && at(x, y - 1);
                 match (above, below) {
-                    (true, false) => Some((true, tile_of(x, y))),
-                    (false, true) => Some((false, tile_of(x, y - 1))),
+                    (true, false) => Some((EdgeFacing::Down, tile_of(x, y))),
+                    (false, true) => Some((EdgeFacing::Up, tile_of(x, y - 1))),
                     _ => None,
                 }
             };
-            let seg = |x0: usize, x1: usize, forward: bool| {
-                let (a, b) = (to_world(x0 as f32, y as f32), to_world(x1 as f32, y as f32));
-                if forward { (a, b) } else { (b, a) }
-            };
-            emit_runs(width, &kind, &seg);
+            emit_runs(y, width, &kind);
         }
-        // Vertical grid lines x = 0..=width: blocked on the right, the cell's left edge, run -y;
-        // blocked on the left, its right edge, run +y.
+        // Vertical grid lines x = 0..=width: blocked on the right, seen from the left; blocked
+        // on the left, seen from the right.
         for x in 0..=width {
             let kind = |y: usize| {
                 let right = x < width && at(x, y);
                 let left = x > 0 && at(x - 1, y);
                 match (right, left) {
-                    (true, false) => Some((false, tile_of(x, y))),
-                    (false, true) => Some((true, tile_of(x - 1, y))),
+                    (true, false) => Some((EdgeFacing::Left, tile_of(x, y))),
+                    (false, true) => Some((EdgeFacing::Right, tile_of(x - 1, y))),
                     _ => None,
                 }
             };
-            let seg = |y0: usize, y1: usize, forward: bool| {
-                let (a, b) = (to_world(x as f32, y0 as f32), to_world(x as f32, y1 as f32));
-                if forward { (a, b) } else { (b, a) }
-            };
-            emit_runs(height, &kind, &seg);
+            emit_runs(x, height, &kind);
         }
-        let mut tile_start = Vec::with_capacity(bins.len() + 1);
-        let mut segments = Vec::with_capacity(bins.iter().map(Vec::len).sum());
+        let mut start = Vec::with_capacity(bins.len() + 1);
+        let mut edges = Vec::with_capacity(bins.iter().map(Vec::len).sum());
         for b in &bins {
-            tile_start.push(segments.len() as u32);
-            segments.extend_from_slice(b);
+            start.push(edges.len() as u32);
+            edges.extend_from_slice(b);
         }
-        tile_start.push(segments.len() as u32);
-        Self { segments, tile_start, tiles_x, tiles_y, origin: *origin, resolution, rot: origin.yaw.sin_cos() }
+        start.push(edges.len() as u32);
+        Self { edges, start, tiles_x, tiles_y }
     }
 
-    /// Number of segments.
+    /// Number of edges.
     pub fn len(&self) -> usize {
-        self.segments.len()
+        self.edges.len()
     }
 
     /// Whether there are none (a grid without blocked cells).
     pub fn is_empty(&self) -> bool {
-        self.segments.is_empty()
+        self.edges.is_empty()
     }
 
-    /// Calls `f` with the segments of every tile that may hold a point within `reach` of `p`
-    /// (a square of tiles around the disc; callers cull by exact distance), one row of tiles
-    /// at a time.
+    /// Calls `f(facing, edges)` with the edges of the tiles that come within `reach` of the
+    /// grid point `g` (grid frame, cell units), a slice per row of tiles and class, leaving out
+    /// the tiles where that class faces away from `g` (callers still test each edge's side).
     #[inline]
-    pub fn near(&self, p: Vec2, reach: f32, mut f: impl FnMut(&[(Vec2, Vec2)])) {
-        if self.segments.is_empty() {
+    pub fn near(&self, g: Vec2, reach: f32, mut f: impl FnMut(EdgeFacing, &[[f32; 3]])) {
+        if self.edges.is_empty() {
             return;
         }
-        let (s, c) = self.rot;
-        let rel = p - self.origin.position();
-        let tile = self.resolution * EDGE_TILE as f32;
-        let gx = (c * rel.x + s * rel.y) / tile;
-        let gy = (-s * rel.x + c * rel.y) / tile;
-        let r = reach / tile;
-        let range = |g: f32, n: usize| {
-            let lo = (g - r).floor().max(0.0);
-            let hi = (g + r).floor().min(n as f32 - 1.0);
-            (lo <= hi).then_some((lo as usize, hi as usize))
-        };
-        let (Some((x0, x1)), Some((y0, y1))) = (range(gx, self.tiles_x), range(gy, self.tiles_y)) else {
+        let t = EDGE_TILE as f32;
+        // Tile index of a coordinate (cell units), clamped to `[0, n)`; `floor` by truncation
+        // of a non-negative value (`floorf` is a library call on baseline x86-64).
+        let tile = |v: f32, n: usize| ((v / t).max(0.0) as usize).min(n - 1);
+        let (y_lo, y_hi) = (g.y - reach, g.y + reach);
+        if y_hi < 0.0 || y_lo > (self.tiles_y * EDGE_TILE) as f32 {
             return;
-        };
-        for ty in y0..=y1 {
-            let row = ty * self.tiles_x;
-            let (a, b) = (self.tile_start[row + x0] as usize, self.tile_start[row + x1 + 1] as usize);
-            if a < b {
-                f(&self.segments[a..b]);
+        }
+        let gtx = tile(g.x, self.tiles_x);
+        for ty in tile(y_lo, self.tiles_y)..=tile(y_hi, self.tiles_y) {
+            let (ylo, yhi) = ((ty * EDGE_TILE) as f32, ((ty + 1) * EDGE_TILE) as f32);
+            // The disc's extent along this row of tiles.
+            let dy = (ylo - g.y).max(g.y - yhi).max(0.0);
+            let half = (reach * reach - dy * dy).max(0.0).sqrt();
+            let (x_lo, x_hi) = (g.x - half, g.x + half);
+            if x_hi < 0.0 || x_lo > (self.tiles_x * EDGE_TILE) as f32 {
+                continue;
+            }
+            let (x0, x1) = (tile(x_lo, self.tiles_x), tile(x_hi, self.tiles_x));
+            for facing in EdgeFacing::ALL {
+                // The tiles of the row where this class may face `g`: a horizontal class in
+                // the whole row or none, a vertical one from `g`'s column on.
+                let (a, b) = match facing {
+                    EdgeFacing::Down if g.y < yhi => (x0, x1),
+                    EdgeFacing::Up if g.y > ylo => (x0, x1),
+                    EdgeFacing::Left => (x0.max(gtx), x1),
+                    EdgeFacing::Right => (x0, x1.min(gtx)),
+                    _ => continue,
+                };
+                if a > b {
+                    continue;
+                }
+                let row = (4 * ty + facing as usize) * self.tiles_x;
+                let (s, e) = (self.start[row + a] as usize, self.start[row + b + 1] as usize);
+                if s < e {
+                    f(facing, &self.edges[s..e]);
+                }
             }
         }
     }

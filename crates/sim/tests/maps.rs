@@ -164,6 +164,48 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(if std::env::var("CI").is_ok() { 32 } else { 96 }))]
+
+    /// A grid with shapes on it (static obstacles in the world, movers in a second layer): every
+    /// beam reads the nearer of what the grid alone and the shapes alone give, to the bit (the
+    /// grid is cast last, with the shapes' hits as its limits).
+    #[test]
+    fn lidar_on_a_grid_with_shapes_reads_the_nearer(seed in 0u64..1_000_000, fill in 0.01f64..0.2,
+                                                     yaw in -3.2f32..3.2, beams in 10usize..400) {
+        let origin = Pose2::new(-1.0, -0.8, yaw);
+        let g = Arc::new(random_grid(seed, 40, 32, fill, 0.05, origin));
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed ^ 0x77);
+        let mut shape = || {
+            let c = origin.to_parent(Vec2::new(rng.random_range(0.0..2.0), rng.random_range(0.0..1.6)));
+            if rng.random_bool(0.5) {
+                ObstacleSpec::Circle { center: [c.x, c.y], radius: rng.random_range(0.02..0.2) }
+            } else {
+                ObstacleSpec::Box { center: [c.x, c.y], size: [rng.random_range(0.02..0.3), 0.1], yaw: rng.random_range(-3.0..3.0) }
+            }
+        };
+        let statics: Vec<Obstacle> = (0..4).map(|_| Obstacle::new(shape()).unwrap()).collect();
+        let movers: Vec<Obstacle> = (0..3).map(|_| Obstacle::new(shape()).unwrap()).collect();
+        let mixed = World::with_grid(statics.clone(), g.clone());
+        let grid_only = World::with_grid(Vec::new(), g.clone());
+        let shapes_only = World::new(statics);
+        let moving = World::new(movers);
+        let lidar = Lidar::new(LidarSpec { beams, range_max: 2.5, ..Default::default() });
+        let mut dirs = vec![Vec2::ZERO; beams];
+        let (mut both, mut a, mut b) = (vec![0.0; beams], vec![0.0; beams], vec![0.0; beams]);
+        for _ in 0..20 {
+            let p = origin.to_parent(Vec2::new(rng.random_range(-0.2..2.2), rng.random_range(-0.2..1.8)));
+            let pose = Pose2::new(p.x, p.y, rng.random_range(-3.2..3.2));
+            lidar.scan_layers(&pose, &[mixed.ray_geometry(), moving.ray_geometry()], &mut dirs, &mut both);
+            lidar.scan(&pose, grid_only.ray_geometry(), &mut dirs, &mut a);
+            lidar.scan_layers(&pose, &[shapes_only.ray_geometry(), moving.ray_geometry()], &mut dirs, &mut b);
+            for i in 0..beams {
+                prop_assert_eq!(both[i], a[i].min(b[i]), "beam {}: grid {} shapes {}", i, a[i], b[i]);
+            }
+        }
+    }
+}
+
 #[test]
 fn lidar_on_a_grid_equals_lidar_on_the_same_cells_as_boxes() {
     let origin = Pose2::new(-2.0, -1.5, 0.0);
@@ -543,7 +585,8 @@ fn known_clearance_counts_unknown_cells_even_when_they_are_open() {
 }
 
 /// The shipped maps (a drawn warehouse; ROBOTIS's map_saver map with its unknown space): the
-/// lidar's outline cast equals the cell walk from poses all over the known free space.
+/// lidar's outline cast equals the cell walk from poses all over the known free space, and no
+/// beam ever reads more than 1 mm longer than the walk (a long reading would hide a wall).
 #[test]
 fn lidar_on_the_shipped_maps_equals_the_cell_walk() {
     for name in ["warehouse", "turtlebot3-world"] {
@@ -555,7 +598,7 @@ fn lidar_on_the_shipped_maps_equals_the_cell_walk() {
             let lidar = Lidar::new(LidarSpec { beams: 360, range_max, ..Default::default() });
             let (mut dirs, mut fast, mut walk) = (vec![Vec2::ZERO; 360], vec![0.0; 360], vec![0.0; 360]);
             let (mut poses, mut mismatches) = (0, 0);
-            while poses < 300 {
+            while poses < 1000 {
                 let p = Vec2::new(rng.random_range(b.min.x..b.max.x), rng.random_range(b.min.y..b.max.y));
                 if !g.is_known_free(p) || g.clearance(p) < 0.05 {
                     continue;
@@ -570,11 +613,12 @@ fn lidar_on_the_shipped_maps_equals_the_cell_walk() {
                         same_hit(&g, sensor, dirs[i], *f, *w),
                         "{name} beam {i} at {pose:?}: outline {f}, walk {w}"
                     );
+                    assert!(*f <= w + 1e-3, "{name} beam {i} at {pose:?}: outline {f} longer than walk {w}");
                     mismatches += usize::from((f - w).abs() > 1e-5 * f.max(*w).max(1.0));
                 }
             }
             // Rounding differences are rare: grazing beams only.
-            assert!(mismatches < 300 * 360 / 200, "{name}: {mismatches} of {} beams differ", 300 * 360);
+            assert!(mismatches < 1000 * 360 / 200, "{name}: {mismatches} of {} beams differ", 1000 * 360);
         }
     }
 }
