@@ -1306,16 +1306,16 @@ fn corridor_walls<R: rand::Rng>(c: &CorridorGenSpec, s: Vec2, q: Vec2, rng: &mut
     let mut ends: Vec<(Vec2, Vec2)> = Vec::with_capacity(2);
     for side in [-1.0f32, 1.0] {
         let h = 0.5 * width * side;
-        let normal = |k: usize| {
-            let e = (route[k + 1] - route[k]).normalize_or_zero();
+        let normal = |a: Vec2, b: Vec2| {
+            let e = (b - a).normalize_or_zero();
             Vec2::new(-e.y, e.x)
         };
-        let mut pts = vec![route[0] + normal(0) * h];
-        for k in 1..n - 1 {
+        let mut pts = vec![route[0] + normal(route[0], route[1]) * h];
+        for w in route.windows(3) {
             // The mitre of two legs at a right angle: the sum of their normals.
-            pts.push(route[k] + (normal(k - 1) + normal(k)) * h);
+            pts.push(w[1] + (normal(w[0], w[1]) + normal(w[1], w[2])) * h);
         }
-        pts.push(route[n - 1] + normal(n - 2) * h);
+        pts.push(route[n - 1] + normal(route[n - 2], route[n - 1]) * h);
         ends.push((pts[0], pts[pts.len() - 1]));
         for w in pts.windows(2) {
             let spec = if thick < 0.02 {
