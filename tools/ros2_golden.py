@@ -102,6 +102,26 @@ def marker_array():
     return MarkerArray(markers=[clear, box, tri])
 
 
+def path():
+    from nav_msgs.msg import Path
+
+    m = Path()
+    m.header.stamp = stamp(5, 25)
+    m.header.frame_id = "map"
+    for x, y in [(0.0, 0.0), (1.0, 0.5)]:
+        p = pose_stamped()
+        p.header.stamp = m.header.stamp
+        p.pose.position.x, p.pose.position.y = x, y
+        m.poses.append(p)
+    return m
+
+
+def empty():
+    from std_msgs.msg import Empty
+
+    return Empty()
+
+
 messages = {
     "sensor_msgs/msg/LaserScan": scan(),
     "nav_msgs/msg/Odometry": odom(),
@@ -111,5 +131,8 @@ messages = {
     "rosgraph_msgs/msg/Clock": Clock(clock=stamp(42, 999999999)),
     "std_msgs/msg/String": String(data="driving"),
     "visualization_msgs/msg/MarkerArray": marker_array(),
+    # The plan's type, and the one-byte empty structure inside FollowPath's result.
+    "nav_msgs/msg/Path": path(),
+    "std_msgs/msg/Empty": empty(),
 }
 print(json.dumps({k: serialize_message(v).hex() for k, v in messages.items()}, indent=1))

@@ -10,6 +10,13 @@ Modes:
   rclpy-plan    as rclpy-node, for a node started without a goal: the goal comes as a
                 nav_msgs/Path on /plan (what Nav2's planner server publishes), and /odom is
                 published best effort (as a TurtleBot 4 does)
+  rclpy-u-plan  with rlnav's sim bridge running crates/cli/tests/fixtures/u-dead-end.yaml and
+                rlnav's node started without a goal: publish a nav_msgs/Path round the U-shaped
+                dead end on /plan (frame odom, 5 cm spacing, re-sent every second as Nav2's
+                planner server replans) and watch the bridge's /odom until the robot is within
+                the goal tolerance of the path's end; report the final distance and the
+                trajectory's closest approach to the U (--no-plan: publish no plan and report
+                where the robot got to, the counterfactual)
   rclpy-sim     subscribe to the sim bridge's /scan, /odom and /goal_pose, check them, and drive
                 the robot to the goal with a proportional controller on /cmd_vel
   cyclone-node  as rclpy-node, over Cyclone DDS with hand-declared ROS 2 types
@@ -191,6 +198,102 @@ def rclpy_sim(seconds):
     result(ok, peer="rclpy", closest=closest, **seen)
 
 
+# The U of crates/cli/tests/fixtures/u-dead-end.yaml (boxes: centre, size) and a plan round it,
+# from the fixed start (-2.4, 0) to the goal (2.2, 0) behind the U, as a global planner would
+# route it: out to the side of the mouth, along the U's outside 0.75 m off its wall, and down to
+# the goal.
+U_BOXES = [((0.6, 0.0), (0.15, 1.9)), ((0.0, 0.88), (1.35, 0.15)), ((0.0, -0.88), (1.35, 0.15))]
+U_ROUTE = [(-2.4, 0.0), (-1.6, 0.0), (-1.1, 1.7), (1.2, 1.7), (2.2, 0.0)]
+U_GOAL_TOLERANCE = 0.3
+# Inside the U: between its arms, in front of its back wall.
+U_INSIDE = ((-0.675, -0.805), (0.525, 0.805))
+
+
+def dense(route, step=0.05):
+    """The route as poses every `step` metres, as Nav2's planners return paths (one per cell)."""
+    out = [route[0]]
+    for (ax, ay), (bx, by) in zip(route, route[1:]):
+        n = max(1, int(math.ceil(math.hypot(bx - ax, by - ay) / step)))
+        out += [(ax + (bx - ax) * k / n, ay + (by - ay) * k / n) for k in range(1, n + 1)]
+    return out
+
+
+def box_distance(x, y, box):
+    (cx, cy), (w, h) = box
+    dx, dy = max(abs(x - cx) - w / 2, 0.0), max(abs(y - cy) - h / 2, 0.0)
+    return math.hypot(dx, dy)
+
+
+def rclpy_u_plan(seconds, with_plan=True):
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from nav_msgs.msg import Odometry, Path
+
+    rclpy.init()
+    node = rclpy.create_node("interop_planner")
+    plan_pub = node.create_publisher(Path, "/plan", 10)
+    state = {"odom": 0, "pose": None, "track": []}
+
+    def on_odom(m):
+        state["odom"] += 1
+        p = m.pose.pose.position
+        state["pose"] = (p.x, p.y)
+        state["track"].append((p.x, p.y))
+
+    node.create_subscription(Odometry, "/odom", on_odom, 10)
+    points = dense(U_ROUTE)
+    goal = points[-1]
+    end = time.time() + seconds
+    last_plan = 0.0
+    arrived_after = None
+    start = time.time()
+    # Where along the route the robot is (a point index, only moving forward): each replan
+    # starts there, as a planner's path starts at the robot.
+    along = 0
+    last_count, last_change = 0, time.time()
+    while time.time() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)
+        if state["odom"] != last_count:
+            last_count, last_change = state["odom"], time.time()
+        elif last_count and time.time() - last_change > 3.0:
+            break  # the bridge ended its episode (a collision, or its time ran out)
+        if with_plan and time.time() - last_plan >= 1.0:
+            last_plan = time.time()
+            if state["pose"]:
+                x, y = state["pose"]
+                window = range(along, min(len(points), along + 60))
+                along = min(window, key=lambda k: math.hypot(points[k][0] - x, points[k][1] - y))
+            p = Path()
+            p.header.stamp, p.header.frame_id = node.get_clock().now().to_msg(), "odom"
+            for x, y in points[along:]:
+                ps = PoseStamped()
+                ps.header = p.header
+                ps.pose.position.x, ps.pose.position.y = x, y
+                ps.pose.orientation.w = 1.0
+                p.poses.append(ps)
+            plan_pub.publish(p)
+        if state["pose"] and math.hypot(state["pose"][0] - goal[0], state["pose"][1] - goal[1]) < U_GOAL_TOLERANCE:
+            arrived_after = time.time() - start
+            break
+    node.destroy_node()
+    rclpy.shutdown()
+    track = state["track"]
+    final = math.hypot(track[-1][0] - goal[0], track[-1][1] - goal[1]) if track else None
+    closest_goal = min((math.hypot(x - goal[0], y - goal[1]) for x, y in track), default=None)
+    # The robot's centre to the nearest wall of the U (the Jetbot's radius is 0.1 m).
+    closest_u = min((min(box_distance(x, y, b) for b in U_BOXES) for x, y in track), default=None)
+    (ax, ay), (bx, by) = U_INSIDE
+    inside_u = sum(1 for x, y in track if ax < x < bx and ay < y < by)
+    arrived = arrived_after is not None
+    # Without a plan the run is the counterfactual: it passes when odometry was seen; the test
+    # reads `arrived`.
+    ok = state["odom"] > 10 and (arrived or not with_plan)
+    result(ok, peer="rclpy", plan=with_plan, arrived=arrived, seconds=arrived_after, final_distance=final,
+           closest_to_goal=closest_goal, closest_to_u=closest_u, inside_u=inside_u, odom=state["odom"],
+           plan_poses=len(points),
+           end=track[-1] if track else None)
+
+
 # ---------------------------------------------------------------- Eclipse Cyclone DDS
 
 CYCLONE_LOOPBACK = """<CycloneDDS><Domain id="any"><General><Interfaces>
@@ -359,9 +462,12 @@ def cyclone_sim(seconds):
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
-    ap.add_argument("mode", choices=["rclpy-node", "rclpy-plan", "rclpy-sim", "cyclone-node", "cyclone-sim"])
+    ap.add_argument("mode", choices=["rclpy-node", "rclpy-plan", "rclpy-u-plan", "rclpy-sim", "cyclone-node",
+                                     "cyclone-sim"])
     ap.add_argument("--seconds", type=float, default=30.0)
     ap.add_argument("--ns", default="", help="the rlnav node's namespace (rclpy-node), e.g. /robot1")
+    ap.add_argument("--no-plan", action="store_true", help="rclpy-u-plan: publish no plan (the counterfactual)")
     a = ap.parse_args()
     {"rclpy-node": lambda t: rclpy_node(t, ns=a.ns), "rclpy-sim": rclpy_sim, "cyclone-node": cyclone_node,
-     "cyclone-sim": cyclone_sim, "rclpy-plan": lambda t: rclpy_node(t, plan=True)}[a.mode](a.seconds)
+     "cyclone-sim": cyclone_sim, "rclpy-plan": lambda t: rclpy_node(t, plan=True),
+     "rclpy-u-plan": lambda t: rclpy_u_plan(t, with_plan=not a.no_plan)}[a.mode](a.seconds)

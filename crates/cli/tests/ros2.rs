@@ -80,19 +80,30 @@ fn node_passes_a_box_moving_across_the_path_without_touching_it() {
 
 /// Runs a peer mode of `tools/ros2_interop.py` against rlnav's node or sim bridge.
 fn interop(mode: &str, rlnav_args: &str, domain: u16) -> Option<(serde_json::Value, String)> {
+    interop_with(mode, &[rlnav_args], domain, 60)
+}
+
+/// Runs a peer mode of `tools/ros2_interop.py` for `seconds` against rlnav processes (`ros2
+/// ARGS` each: a node, a sim bridge, or both), their output after the peer's.
+fn interop_with(mode: &str, rlnav: &[&str], domain: u16, seconds: u32) -> Option<(serde_json::Value, String)> {
     let Ok(python) = std::env::var("RLNAV_ROS_PYTHON") else {
         eprintln!("RLNAV_ROS_PYTHON not set: skipping the {mode} interoperability test (.ci/run sets it)");
         return None;
     };
-    // Loopback only; ROS arguments, which take everything after them, come last.
-    let rlnav_args = match rlnav_args.split_once(" --ros-args") {
-        Some((ours, ros)) => format!("{ours} --localhost --ros-args{ros}"),
-        None => format!("{rlnav_args} --localhost"),
-    };
+    let mut start = String::new();
+    let mut stop = String::new();
+    for (k, rlnav_args) in rlnav.iter().enumerate() {
+        // Loopback only; ROS arguments, which take everything after them, come last.
+        let rlnav_args = match rlnav_args.split_once(" --ros-args") {
+            Some((ours, ros)) => format!("{ours} --localhost --ros-args{ros}"),
+            None => format!("{rlnav_args} --localhost"),
+        };
+        start += &format!("timeout {} '{BIN}' ros2 {rlnav_args} > rlnav{k}.out & N{k}=$!\n", seconds + 30);
+        stop += &format!("kill -INT $N{k} 2>/dev/null; wait $N{k}; echo; cat rlnav{k}.out\n");
+    }
     let script = format!(
-        "timeout 90 '{BIN}' ros2 {rlnav_args} > rlnav.out & N=$!\n\
-         timeout 80 '{python}' tools/ros2_interop.py {mode} --seconds 60; R=$?\n\
-         kill -INT $N 2>/dev/null; wait $N; echo; cat rlnav.out; exit $R"
+        "{start}timeout {} '{python}' tools/ros2_interop.py {mode} --seconds {seconds}; R=$?\n{stop}exit $R",
+        seconds + 20
     );
     let dir =
         std::env::temp_dir().join(format!("rlnav-interop-{}-{}", mode.replace([' ', '/'], "_"), std::process::id()));
@@ -107,6 +118,46 @@ fn interop(mode: &str, rlnav_args: &str, domain: u16) -> Option<(serde_json::Val
     assert!(ok && v["ok"] == true, "{mode}: {v}\n{stdout}\n{stderr}");
     std::fs::remove_dir_all(&dir).ok();
     Some((v, stdout))
+}
+
+/// The U-shaped dead end over DDS, every part a separate process: rlnav's sim bridge runs
+/// `fixtures/u-dead-end.yaml` (a U opening towards the robot, the goal behind it), rlnav's node
+/// drives it with the shipped policy and no goal of its own, and rclpy, in the global
+/// planner's place, publishes a `nav_msgs/Path` round the U on `/plan` and watches the
+/// bridge's `/odom` until the robot is within the goal tolerance of the path's end. The bridge
+/// must also count the episode a success (its goal is the path's end), so the robot really
+/// arrived in the simulated world.
+///
+/// The bridge re-sends its scenario goal on `/goal_pose` every second, and a goal replaces a
+/// plan in the node; in a Nav2 stack `/goal_pose` is bt_navigator's, not the controller's, so
+/// the node's goal topic is moved aside, as it would be there.
+#[test]
+fn rclpy_plan_round_a_u_shaped_dead_end_brings_the_robot_to_the_goal() {
+    let sim = format!("sim --scenario {ROOT}/crates/cli/tests/fixtures/u-dead-end.yaml --episodes 1");
+    let node = format!("node --policy {ROOT}/{POLICY} --ros-args -r goal_pose:=/rlnav/unused_goal_pose");
+    if let Some((v, stdout)) = interop_with("rclpy-u-plan", &[sim.as_str(), node.as_str()], 70, 90) {
+        eprintln!("{v}");
+        assert_eq!(v["arrived"], true, "{v}");
+        assert!(v["final_distance"].as_f64().unwrap() < 0.3, "{v}");
+        // Round the U, never into it.
+        assert_eq!(v["inside_u"], 0, "{v}");
+        assert!(stdout.contains("\"outcome\":\"success\""), "the bridge's episode: {stdout}");
+    }
+}
+
+/// The counterfactual: the same scene with only the bridge's goal (on `/goal_pose`, which the
+/// node takes) and no plan. Steering at the goal, the shipped policy drives into the U and does
+/// not arrive (measured 2026-12-03: it hits the U's back wall after 9.1 s, 1.9 m from the goal;
+/// `rlnav render --episode` shows the same in-process, a collision after 8.0 s).
+#[test]
+fn without_a_plan_the_u_shaped_dead_end_traps_the_policy() {
+    let sim = format!("sim --scenario {ROOT}/crates/cli/tests/fixtures/u-dead-end.yaml --episodes 1");
+    let node = format!("node --policy {ROOT}/{POLICY}");
+    if let Some((v, _)) = interop_with("rclpy-u-plan --no-plan", &[sim.as_str(), node.as_str()], 71, 60) {
+        eprintln!("{v}");
+        assert_eq!(v["arrived"], false, "{v}");
+        assert!(v["inside_u"].as_u64().unwrap() > 0, "drove into the U: {v}");
+    }
 }
 
 #[test]

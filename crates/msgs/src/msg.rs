@@ -61,6 +61,7 @@ fn definition_of(full_name: &str) -> Option<&'static str> {
         "visualization_msgs/msg/UVCoordinate" => UVCoordinate::DEFINITION,
         "visualization_msgs/msg/MeshFile" => MeshFile::DEFINITION,
         "visualization_msgs/msg/Marker" => Marker::DEFINITION,
+        "std_msgs/msg/Empty" => Empty::DEFINITION,
         _ => return None,
     })
 }
@@ -375,6 +376,91 @@ ros_message!(
     ],
     "std_msgs/Header header\ngeometry_msgs/PoseStamped[] poses\n"
 );
+
+/// `std_msgs/Empty`. ROS 2's IDL gives a structure without fields one byte,
+/// `structure_needs_at_least_one_member`, and that byte is on the wire (an action's empty
+/// result part, as in `nav2_msgs/FollowPath`, carries it).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Empty {
+    /// Always 0; there only because IDL structures cannot be empty.
+    pub structure_needs_at_least_one_member: u8,
+}
+ros_message!(Empty, "std_msgs", "Empty", [], "");
+
+/// `nav2_msgs/action/FollowPath` as ROS 2 Jazzy's Nav2 defines it: the action
+/// `controller_server` serves as `follow_path` and bt_navigator's FollowPath node calls. The
+/// three parts are the structs an action's wire types wrap (`FollowPath_SendGoal_Request_`
+/// holds the goal id and a [`FollowPathGoal`], `FollowPath_GetResult_Response_` a status and a
+/// [`FollowPathResult`], `FollowPath_FeedbackMessage_` a goal id and a [`FollowPathFeedback`]).
+pub mod follow_path {
+    use super::{Empty, Path};
+    use serde::{Deserialize, Serialize};
+
+    /// The action's package and name (`nav2_msgs/action/FollowPath`).
+    pub const PACKAGE: &str = "nav2_msgs";
+    /// The action's name within its package.
+    pub const NAME: &str = "FollowPath";
+
+    /// The goal: a path to follow and the plugins to use for it.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct FollowPathGoal {
+        /// The path, usually in `map`.
+        pub path: Path,
+        /// Which controller plugin (`FollowPath` in Nav2's default behaviour trees).
+        pub controller_id: String,
+        /// Which goal checker plugin.
+        pub goal_checker_id: String,
+        /// Which progress checker plugin (new in Jazzy).
+        pub progress_checker_id: String,
+    }
+
+    /// The result: an error code (0 on success) and a message saying why.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct FollowPathResult {
+        /// Nothing (`std_msgs/Empty`).
+        pub result: Empty,
+        /// One of the constants below.
+        pub error_code: u16,
+        /// Why it failed (empty on success).
+        pub error_msg: String,
+    }
+
+    /// Jazzy's error codes (`FollowPath.action`), in its priority order.
+    impl FollowPathResult {
+        /// No error.
+        pub const NONE: u16 = 0;
+        /// An error of no other kind.
+        pub const UNKNOWN: u16 = 100;
+        /// The controller id names no controller.
+        pub const INVALID_CONTROLLER: u16 = 101;
+        /// A transform was missing.
+        pub const TF_ERROR: u16 = 102;
+        /// The path is empty or unusable.
+        pub const INVALID_PATH: u16 = 103;
+        /// The controller's patience ran out.
+        pub const PATIENCE_EXCEEDED: u16 = 104;
+        /// The progress checker saw the robot not moving.
+        pub const FAILED_TO_MAKE_PROGRESS: u16 = 105;
+        /// The controller could not compute a command.
+        pub const NO_VALID_CONTROL: u16 = 106;
+        /// The controller took too long.
+        pub const CONTROLLER_TIMED_OUT: u16 = 107;
+
+        /// A failure with `code` and its reason.
+        pub fn error(code: u16, msg: impl Into<String>) -> Self {
+            Self { result: Empty::default(), error_code: code, error_msg: msg.into() }
+        }
+    }
+
+    /// The feedback while driving.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct FollowPathFeedback {
+        /// Path length left to the path's end (m).
+        pub distance_to_goal: f32,
+        /// The robot's speed (m/s).
+        pub speed: f32,
+    }
+}
 
 /// `geometry_msgs/Transform`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -777,9 +863,12 @@ pub enum DecodeError {
 pub fn to_cdr<M: RosMessage>(m: &M) -> Vec<u8> {
     let body =
         cdr_encoding::to_vec::<M, byteorder::LittleEndian>(m).expect("CDR serialization of plain structs cannot fail");
-    let mut out = Vec::with_capacity(body.len() + 4);
+    let mut out = Vec::with_capacity(body.len() + 7);
     out.extend_from_slice(&CDR_LE_HEADER);
     out.extend_from_slice(&body);
+    // Fast CDR (ROS 2's serializer) ends a message on a 4-byte boundary: rclpy's
+    // `std_msgs/Empty` is the header and 4 bytes, not 1. Decoders ignore the padding.
+    out.resize(out.len().next_multiple_of(4), 0);
     out
 }
 
@@ -831,6 +920,32 @@ mod tests {
         for ty in ["Header", "Time", "PoseWithCovariance", "Pose", "Point", "Quaternion", "Twist", "Vector3"] {
             assert!(Odometry::DEPENDS.iter().any(|d| d.ends_with(&format!("/{ty}"))), "{ty}");
         }
+    }
+
+    /// The FollowPath parts in CDR, laid out by hand from the IDL: the empty result's one byte,
+    /// then the error code at 2, then the message's length at 4; the goal's three strings
+    /// after the path.
+    #[test]
+    fn follow_path_parts_have_the_idl_layout() {
+        use follow_path::*;
+        fn le<T: Serialize>(v: &T) -> Vec<u8> {
+            cdr_encoding::to_vec::<T, byteorder::LittleEndian>(v).unwrap()
+        }
+        let r = FollowPathResult::error(FollowPathResult::INVALID_PATH, "ab");
+        assert_eq!(le(&r), [0, 0, 103, 0, 3, 0, 0, 0, b'a', b'b', 0]);
+        let f = FollowPathFeedback { distance_to_goal: 1.0, speed: 0.5 };
+        assert_eq!(le(&f), [0, 0, 0x80, 0x3f, 0, 0, 0, 0x3f]);
+        let g = FollowPathGoal { controller_id: "FollowPath".into(), ..Default::default() };
+        let path = le(&g.path);
+        let bytes = le(&g);
+        // An empty path: stamp (8), frame "" (4 + 1), padding to 4, no poses (4).
+        assert_eq!(path.len(), 20);
+        assert_eq!(&bytes[..20], &path[..]);
+        assert_eq!(&bytes[20..24], &11u32.to_le_bytes());
+        assert_eq!(&bytes[24..35], b"FollowPath\0");
+        let (back, _) = cdr_encoding::from_bytes::<FollowPathGoal, byteorder::LittleEndian>(&bytes).unwrap();
+        assert_eq!(back, g);
+        assert_eq!(le(&Empty::default()), [0]);
     }
 
     #[test]

@@ -114,17 +114,21 @@ impl SimBridge {
     }
 
     /// Advances one control period under the latest command. Returns the episode's figures
-    /// when it ended (the next episode has then begun).
+    /// when it ended; the robot then stays where the episode left it (its messages show the
+    /// last pose, at the goal or the collision) until [`SimBridge::next_episode`].
     pub fn step(&mut self) -> Result<Option<EpisodeStats>, SimError> {
         let cmd = if self.time - self.cmd_at <= self.cmd_timeout { self.cmd } else { Twist::default() };
         let out = self.env.step_twist(cmd);
         self.time += self.period();
         if out.terminated || out.truncated {
-            let stats = self.env.last_episode();
-            self.env.reset()?;
-            return Ok(stats);
+            return Ok(self.env.last_episode());
         }
         Ok(None)
+    }
+
+    /// Starts the next episode (after [`SimBridge::step`] reported the end of one).
+    pub fn next_episode(&mut self) -> Result<(), SimError> {
+        self.env.reset()
     }
 }
 
@@ -194,7 +198,8 @@ pub fn run_bridge(
                 bridge.on_cmd(&m.twist);
             }
         }
-        let ended = bridge.step().map_err(|e| BusError::Create { what: "episode".into(), message: e.to_string() })?;
+        let episode_error = |e: SimError| BusError::Create { what: "episode".into(), message: e.to_string() };
+        let ended = bridge.step().map_err(episode_error)?;
         // The goal is re-sent every second (and at each new episode), so that a node started
         // late, or one that subscribes with volatile durability as RViz's goal does, gets it.
         let goal_due = ended.is_some() || bridge.time() - last_goal >= 1.0;
@@ -202,10 +207,17 @@ pub fn run_bridge(
             last_goal = bridge.time();
         }
         if let Some(stats) = ended {
+            // The episode's last state first (the robot at the goal, or where it collided), so
+            // that a peer watching /odom sees where the episode ended, not only the next start.
+            publish(&bridge, false, false);
             done += 1;
             let json = serde_json::to_string(&stats).unwrap_or_default();
             let _ = episode_pub.publish(StringMsg { data: json });
             on_episode(&stats);
+            if opts.episodes != 0 && done >= opts.episodes {
+                break;
+            }
+            bridge.next_episode().map_err(episode_error)?;
             publish_map(&bridge);
         }
         publish(&bridge, goal_due, ended.is_some());
@@ -217,5 +229,8 @@ pub fn run_bridge(
             next = now;
         }
     }
+    // RustDDS sends from its own thread: a moment for the last samples (the episode's end) to
+    // leave before the process may exit.
+    std::thread::sleep(Duration::from_millis(200));
     Ok(())
 }

@@ -156,6 +156,68 @@ impl Bus {
             .map_err(|e| create(format!("subscription to `{topic}`"))(format!("{e:?}")))
     }
 
+    /// An action server for `action` (`follow_path`, resolved like a topic) of type
+    /// `package/action/name`, with the QoS ROS 2's actions use: reliable volatile services and
+    /// feedback, and a transient-local status topic (rcl's defaults; a client asks for those).
+    pub fn action_server<G, R, F>(
+        &mut self,
+        action: &str,
+        package: &str,
+        name: &str,
+    ) -> Result<ros2_client::action::ActionServer<G, R, F>, BusError>
+    where
+        G: ros2_client::Message + Clone + 'static,
+        R: ros2_client::Message + Clone + 'static,
+        F: ros2_client::Message + 'static,
+    {
+        let n = Name::parse(action).map_err(|e| create(format!("action name `{action}`"))(format!("{e:?}")))?;
+        let qos = ros2_client::action::ActionServerQosPolicies {
+            goal_service: Qos::Default.profile(),
+            result_service: Qos::Default.profile(),
+            cancel_service: Qos::Default.profile(),
+            feedback_publisher: Qos::Default.profile(),
+            status_publisher: Qos::Latched.profile(),
+        };
+        self.node
+            .create_action_server::<G, R, F>(
+                ros2_client::dds::ServiceMapping::Enhanced,
+                &n,
+                &ros2_client::ActionTypeName::new(package, name),
+                qos,
+            )
+            .map_err(|e| create(format!("action server `{action}`"))(format!("{e:?}")))
+    }
+
+    /// An action client for `action`, as [`Bus::action_server`] serves it (tests, tools).
+    pub fn action_client<G, R, F>(
+        &mut self,
+        action: &str,
+        package: &str,
+        name: &str,
+    ) -> Result<ros2_client::action::ActionClient<G, R, F>, BusError>
+    where
+        G: ros2_client::Message + Clone + 'static,
+        R: ros2_client::Message + Clone + 'static,
+        F: ros2_client::Message + 'static,
+    {
+        let n = Name::parse(action).map_err(|e| create(format!("action name `{action}`"))(format!("{e:?}")))?;
+        let qos = ros2_client::action::ActionClientQosPolicies {
+            goal_service: Qos::Default.profile(),
+            result_service: Qos::Default.profile(),
+            cancel_service: Qos::Default.profile(),
+            feedback_subscription: Qos::Default.profile(),
+            status_subscription: Qos::Latched.profile(),
+        };
+        self.node
+            .create_action_client::<G, R, F>(
+                ros2_client::dds::ServiceMapping::Enhanced,
+                &n,
+                &ros2_client::ActionTypeName::new(package, name),
+                qos,
+            )
+            .map_err(|e| create(format!("action client `{action}`"))(format!("{e:?}")))
+    }
+
     /// The underlying node (for the graph and logging).
     pub fn node(&self) -> &Node {
         &self.node

@@ -7,6 +7,7 @@
 //! returns, it drives again.
 
 use crate::bus::{Bus, BusError, Qos, Reach, drain};
+use crate::follow_path::{FollowPathServer, GoalLimits};
 use crate::msg::{self, LaserScan, Odometry, Path as PlanMsg, PoseStamped, StringMsg, TFMessage, Time, TwistStamped};
 use crate::ros_args::RosArgs;
 use rlnav_policy::PolicyRunner;
@@ -77,6 +78,19 @@ pub struct NodeParams {
     /// Stamp stamped commands with the simulator's time from `/clock` (ROS's `use_sim_time`).
     /// Timeouts are judged on the node's own clock by arrival either way.
     pub use_sim_time: bool,
+    /// Serve Nav2's `nav2_msgs/action/FollowPath` as controller_server does, so that
+    /// bt_navigator drives through the node (see [`crate::follow_path`]).
+    pub follow_path: bool,
+    /// The action's name (controller_server's: `follow_path`, in the node's namespace).
+    pub follow_path_action: String,
+    /// How long the node may stay stopped (no usable scan, pose or transform) before a
+    /// FollowPath goal is aborted (s).
+    pub failure_tolerance: f64,
+    /// Progress checker: a FollowPath goal is aborted (`FAILED_TO_MAKE_PROGRESS`) when the
+    /// robot moves less than this (m) ...
+    pub required_movement_radius: f32,
+    /// ... in this long (s), as Nav2's SimpleProgressChecker.
+    pub movement_time_allowance: f64,
     /// The node's namespace (`-r __ns:=/robot1`; empty: the root): relative topic names
     /// resolve under it. Not a parameter.
     #[serde(skip)]
@@ -122,6 +136,11 @@ impl Default for NodeParams {
             odom_qos: Qos::SensorData,
             cmd_vel_qos: Qos::Default,
             use_sim_time: false,
+            follow_path: true,
+            follow_path_action: "follow_path".into(),
+            failure_tolerance: 1.0,
+            required_movement_radius: 0.5,
+            movement_time_allowance: 10.0,
             namespace: String::new(),
             node_name: String::new(),
         }
@@ -286,7 +305,12 @@ fn node_section(source: &str, text: &str, node: &str) -> Result<serde_norway::Va
 
 impl Validate for NodeParams {
     fn validate(&self) -> Result<(), Invalid> {
-        for (k, v) in [("scan_timeout", self.scan_timeout), ("pose_timeout", self.pose_timeout)] {
+        for (k, v) in [
+            ("scan_timeout", self.scan_timeout),
+            ("pose_timeout", self.pose_timeout),
+            ("failure_tolerance", self.failure_tolerance),
+            ("movement_time_allowance", self.movement_time_allowance),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(Invalid::new(k, "a positive number of seconds"));
             }
@@ -296,6 +320,7 @@ impl Validate for NodeParams {
             ("max_linear", self.max_linear),
             ("max_angular", self.max_angular),
             ("lookahead", self.lookahead),
+            ("required_movement_radius", Some(self.required_movement_radius)),
         ] {
             if let Some(v) = v {
                 check_positive(k, v)?;
@@ -312,6 +337,7 @@ impl Validate for NodeParams {
             ("tf_topic", &self.tf_topic),
             ("cmd_vel_topic", &self.cmd_vel_topic),
             ("status_topic", &self.status_topic),
+            ("follow_path_action", &self.follow_path_action),
         ] {
             if !crate::ros_args::valid_name(t) {
                 return Err(Invalid::new(
@@ -385,6 +411,8 @@ pub struct PolicyNode {
     plan: Option<Plan>,
     /// The point the policy steered to at the last tick (the goal, or a point on the plan).
     target: Option<Vec2>,
+    /// Path length left to the goal at the last tick (m): along the plan, else straight.
+    remaining: Option<f32>,
     lookahead: f32,
     pending_goal: Option<PoseStamped>,
     /// Why the last goal could not be used (it stops the robot until a usable goal arrives).
@@ -425,6 +453,7 @@ impl PolicyNode {
             goal,
             plan: None,
             target: None,
+            remaining: None,
             lookahead,
             pending_goal: None,
             goal_error: None,
@@ -461,6 +490,32 @@ impl PolicyNode {
     /// The lookahead along plans (m).
     pub fn lookahead(&self) -> f32 {
         self.lookahead
+    }
+
+    /// Path length left to the goal as of the last tick (m): along the plan from the robot's
+    /// projection on it, or the straight distance to a goal given alone.
+    pub fn distance_to_goal(&self) -> Option<f32> {
+        self.remaining
+    }
+
+    /// The robot's position (pose frame) and speed (m/s, forward and lateral together) from
+    /// the latest pose, if any.
+    pub fn motion(&self) -> Option<(Vec2, f32)> {
+        self.pose.map(|p| {
+            let lateral = if p.lateral.is_finite() { p.lateral } else { 0.0 };
+            (p.pose.position(), p.velocity.linear.hypot(lateral))
+        })
+    }
+
+    /// Drops the goal and any plan: the robot stops, idle (a canceled or aborted FollowPath
+    /// goal).
+    pub fn clear_goal(&mut self) {
+        self.plan = None;
+        self.goal = None;
+        self.target = None;
+        self.remaining = None;
+        self.pending_goal = None;
+        self.goal_error = None;
     }
 
     /// A scan arrived at `now` (s, the node's clock).
@@ -662,7 +717,10 @@ impl PolicyNode {
     /// The goal and the point to steer to for a robot at `pose` (pose frame): the goal alone,
     /// or with a plan its last point and the point `lookahead` ahead along it.
     fn targets(&mut self, pose: Pose2) -> Result<Option<(Vec2, Vec2)>, String> {
-        let Some(plan) = &self.plan else { return Ok(self.goal.map(|g| (g, g))) };
+        let Some(plan) = &self.plan else {
+            self.remaining = self.goal.map(|g| (g - pose.position()).length());
+            return Ok(self.goal.map(|g| (g, g)));
+        };
         let pose_frame = self.pose_frame.as_deref().unwrap_or_default();
         let t = if plan.frame.is_empty() || plan.frame == pose_frame {
             Pose2::default()
@@ -675,6 +733,10 @@ impl PolicyNode {
         let here = t.to_local(pose.position());
         let sub = plan_subgoal(&plan.points, &mut plan.progress, here, lookahead);
         let end = *plan.points.last().expect("plans are not empty");
+        // From the robot to the end of the segment it is on, then the rest of the plan.
+        let next = (plan.progress + 1).min(plan.points.len() - 1);
+        let rest: f32 = plan.points[next..].windows(2).map(|w| (w[1] - w[0]).length()).sum();
+        self.remaining = Some((plan.points[next] - here).length() + rest);
         Ok(Some((t.to_parent(end), t.to_parent(sub))))
     }
 
@@ -820,6 +882,16 @@ pub fn run_node(
     let stamped_pub =
         if p.cmd_vel_stamped { Some(bus.publisher::<TwistStamped>(&p.cmd_vel_topic, p.cmd_vel_qos)?) } else { None };
     let status_pub = bus.publisher::<StringMsg>(&p.status_topic, Qos::Default)?;
+    let mut follow_path = if p.follow_path {
+        let limits = GoalLimits {
+            failure_tolerance: p.failure_tolerance,
+            required_movement_radius: p.required_movement_radius,
+            movement_time_allowance: p.movement_time_allowance,
+        };
+        Some(FollowPathServer::new(&mut bus, &p.topic(&p.follow_path_action), limits)?)
+    } else {
+        None
+    };
     // Wake on arriving data rather than polling on a timer: the scan-to-command latency is
     // then DDS's, not a sleep's.
     let mut poll = Poll::new().map_err(|e| BusError::Create { what: "poll".into(), message: e.to_string() })?;
@@ -844,6 +916,10 @@ pub fn run_node(
     let mut pose_sub = pose_sub;
     if let Some(s) = pose_sub.as_mut() {
         watch(s, 4)?;
+    }
+    if let Some(f) = follow_path.as_mut() {
+        f.register(reg, 6)
+            .map_err(|e| BusError::Create { what: "poll registration".into(), message: e.to_string() })?;
     }
     let period = node.control_period();
     let start = Instant::now();
@@ -877,11 +953,24 @@ pub fn run_node(
                 pose_arrived = true;
             }
         }
+        if let Some(f) = follow_path.as_mut() {
+            for line in f.handle_requests(&mut node) {
+                eprintln!("[{}] {line}", p.node());
+            }
+        }
+        // While a FollowPath goal runs, the action owns the robot: goals and plans on the
+        // topics (RViz's goal, the planner's /plan, which bt_navigator also sends as the goal's
+        // path) are read and dropped.
+        let action_owns = follow_path.as_ref().is_some_and(|f| f.is_active());
         for m in drain(&goal_sub, &mut dropped) {
-            node.on_goal(&m);
+            if !action_owns {
+                node.on_goal(&m);
+            }
         }
         for m in drain(&plan_sub, &mut dropped) {
-            node.on_plan(&m);
+            if !action_owns {
+                node.on_plan(&m);
+            }
         }
         let scans = drain(&scan_sub, &mut dropped);
         for line in
@@ -903,7 +992,16 @@ pub fn run_node(
                 Trigger::Timer => (next_tick + period).max(now),
                 Trigger::Scan => now + 0.5 * period,
             };
-            let cmd = node.tick(now);
+            let mut cmd = node.tick(now);
+            if let Some(f) = follow_path.as_mut() {
+                if let Some(line) = f.after_tick(&mut node, now) {
+                    eprintln!("[{}] {line}", p.node());
+                    // An aborted goal stops the robot at once, not a tick later.
+                    if node.goal().is_none() {
+                        cmd = Twist::default();
+                    }
+                }
+            }
             let twist = msg::Twist::planar(cmd.linear as f64, cmd.angular as f64);
             // A failed publish (no reader yet, a full queue) is not a reason to stop ticking.
             if let Some(pb) = &twist_pub {
@@ -925,6 +1023,9 @@ pub fn run_node(
             on_command(cmd, node.state());
         }
         node.rejected += std::mem::take(&mut dropped);
+        if let Some(f) = follow_path.as_mut() {
+            node.rejected += std::mem::take(&mut f.rejected);
+        }
         // Sleep until data arrives or the next tick is due (at most 50 ms, to see `stop`).
         let wait = (next_tick - now_since(start)).clamp(0.0, 0.05);
         let wait = if p.trigger == Trigger::Scan && !pending_scan {

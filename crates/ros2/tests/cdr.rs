@@ -117,3 +117,16 @@ fn marker_array_matches_ros2() {
     };
     check(MarkerArray { markers: vec![clear, moving_box, wedge] });
 }
+
+/// The plan's type, and the one-byte empty structure inside FollowPath's result (which ROS 2
+/// pads to 4 bytes).
+#[test]
+fn path_and_empty_match_ros2() {
+    let stamp = Time { sec: 5, nanosec: 25 };
+    let pose = |x, y| PoseStamped {
+        header: Header::new(stamp, "map"),
+        pose: Pose { position: Point { x, y, z: 0.0 }, orientation: rotated() },
+    };
+    check(Path { header: Header::new(stamp, "map"), poses: vec![pose(0.0, 0.0), pose(1.0, 0.5)] });
+    check(Empty::default());
+}

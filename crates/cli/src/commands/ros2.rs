@@ -48,6 +48,11 @@ pub enum Command {
         /// Goal X Y in the pose frame (overrides the parameters' goal).
         #[arg(long, num_args = 2, value_names = ["X", "Y"], allow_negative_numbers = true)]
         goal: Option<Vec<f64>>,
+        /// Do not serve Nav2's FollowPath action (`follow_path`), which is served by default so
+        /// that bt_navigator can drive through the node in controller_server's place (the
+        /// parameter `follow_path: false` does the same).
+        #[arg(long)]
+        no_follow_path: bool,
         #[command(flatten)]
         dds: DdsArgs,
         /// ROS 2 arguments, last, as `ros2 run` and launch files pass them: `-r scan:=/front/scan`,
@@ -95,7 +100,7 @@ fn init_logger(level: Option<String>) {
 
 pub fn run(command: Command) -> Result<()> {
     match command {
-        Command::Node { policy, contract, params, goal, dds, ros_args } => {
+        Command::Node { policy, contract, params, goal, no_follow_path, dds, ros_args } => {
             let ros = RosArgs::parse(&ros_args.unwrap_or_default())?;
             init_logger(ros.log_filter());
             let (domain, reach) = dds.resolve()?;
@@ -106,7 +111,10 @@ pub fn run(command: Command) -> Result<()> {
             if let Some(g) = goal {
                 p.goal = Some([g[0], g[1]]);
             }
-            let (p, unmatched) = p.with_ros_args(&ros)?;
+            let (mut p, unmatched) = p.with_ros_args(&ros)?;
+            if no_follow_path {
+                p.follow_path = false;
+            }
             for r in unmatched {
                 eprintln!("[{}] remapping {r} matches none of the node's topics", p.node());
             }
@@ -122,6 +130,9 @@ pub fn run(command: Command) -> Result<()> {
                 p.topic(&p.scan_topic),
                 p.topic(&p.cmd_vel_topic)
             );
+            if p.follow_path {
+                eprintln!("rlnav_policy: serving nav2_msgs/action/FollowPath as {}", p.topic(&p.follow_path_action));
+            }
             let node = PolicyNode::new(runner, p);
             run_node(node, domain, reach, stop_flag()?, |_, _| {})?;
             Ok(())
