@@ -146,17 +146,35 @@ fn rclpy_plan_round_a_u_shaped_dead_end_brings_the_robot_to_the_goal() {
 }
 
 /// The counterfactual: the same scene with only the bridge's goal (on `/goal_pose`, which the
-/// node takes) and no plan. Steering at the goal, the shipped policy drives into the U and does
+/// node takes), no plan, and the node's own planning on the bridge's `/map` turned off
+/// (`map_topic` empty). Steering at the goal, the shipped policy drives into the U and does
 /// not arrive (measured 2026-12-03: it hits the U's back wall after 9.1 s, 1.9 m from the goal;
 /// `rlnav render --episode` shows the same in-process, a collision after 8.0 s).
 #[test]
 fn without_a_plan_the_u_shaped_dead_end_traps_the_policy() {
     let sim = format!("sim --scenario {ROOT}/crates/cli/tests/fixtures/u-dead-end.yaml --episodes 1");
-    let node = format!("node --policy {ROOT}/{POLICY}");
+    let node = format!("node --policy {ROOT}/{POLICY} --ros-args -p \"map_topic:=''\"");
     if let Some((v, _)) = interop_with("rclpy-u-plan --no-plan", &[sim.as_str(), node.as_str()], 71, 60) {
         eprintln!("{v}");
         assert_eq!(v["arrived"], false, "{v}");
         assert!(v["inside_u"].as_u64().unwrap() > 0, "drove into the U: {v}");
+    }
+}
+
+/// With no planner but a map: the node takes the bridge's `/map` (transient local, as
+/// map_server serves it) and its `map -> odom` on `/tf_static`, plans round the U itself with
+/// A* on the inflated map, and follows that plan to the bridge's goal. rclpy only watches.
+/// The counterfactual above is the same run with `map_topic` empty: the policy enters the U.
+/// Measured 2026-12-03: arrived after 13.0 s, 0.50 m from the U at the closest.
+#[test]
+fn with_the_bridges_map_the_node_plans_round_the_u_shaped_dead_end() {
+    let sim = format!("sim --scenario {ROOT}/crates/cli/tests/fixtures/u-dead-end.yaml --episodes 1");
+    let node = format!("node --policy {ROOT}/{POLICY}");
+    if let Some((v, stdout)) = interop_with("rclpy-u-plan --no-plan", &[sim.as_str(), node.as_str()], 72, 90) {
+        eprintln!("{v}");
+        assert_eq!(v["arrived"], true, "{v}\n{stdout}");
+        assert_eq!(v["inside_u"], 0, "{v}");
+        assert!(stdout.contains("\"outcome\":\"success\""), "the bridge's episode: {stdout}");
     }
 }
 

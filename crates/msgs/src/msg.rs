@@ -863,12 +863,9 @@ pub enum DecodeError {
 pub fn to_cdr<M: RosMessage>(m: &M) -> Vec<u8> {
     let body =
         cdr_encoding::to_vec::<M, byteorder::LittleEndian>(m).expect("CDR serialization of plain structs cannot fail");
-    let mut out = Vec::with_capacity(body.len() + 7);
+    let mut out = Vec::with_capacity(body.len() + 4);
     out.extend_from_slice(&CDR_LE_HEADER);
     out.extend_from_slice(&body);
-    // Fast CDR (ROS 2's serializer) ends a message on a 4-byte boundary: rclpy's
-    // `std_msgs/Empty` is the header and 4 bytes, not 1. Decoders ignore the padding.
-    out.resize(out.len().next_multiple_of(4), 0);
     out
 }
 

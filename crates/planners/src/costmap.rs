@@ -68,28 +68,7 @@ impl Costmap {
         let r = config.resolution;
         let size = bounds.size();
         let (width, height) = (((size.x / r).ceil() as usize).max(1), ((size.y / r).ceil() as usize).max(1));
-        let mut kernel = Vec::new();
-        let reach = (config.inflation_radius.max(inscribed) / r).ceil() as i32;
-        for dy in -reach..=reach {
-            for dx in -reach..=reach {
-                let d = ((dx * dx + dy * dy) as f32).sqrt() * r;
-                let c = inflation_cost(d, inscribed, &config);
-                if c > 0 {
-                    kernel.push((dx, dy, c));
-                }
-            }
-        }
-        let mut m = Self {
-            origin: bounds.min,
-            width,
-            height,
-            static_lethal: vec![false; width * height],
-            static_cost: vec![0; width * height],
-            marks: vec![false; width * height],
-            cost: vec![0; width * height],
-            kernel,
-            config,
-        };
+        let mut m = Self::empty(bounds.min, width, height, config, inscribed);
         if let Some(w) = world {
             // A cell is lethal when an obstacle may reach into it: within half the cell's
             // diagonal of its centre. (Half its side missed zero-thickness walls lying on a
@@ -103,13 +82,65 @@ impl Costmap {
                 }
             }
         }
-        let mut static_cost = vec![0u8; width * height];
-        for k in (0..width * height).filter(|k| m.static_lethal[*k]) {
-            m.stamp(&mut static_cost, k);
-        }
-        m.static_cost = static_cost;
-        m.cost.clone_from(&m.static_cost);
+        m.inflate_static();
         m
+    }
+
+    /// A costmap of `width` x `height` cells of `config.resolution` from a map's obstacle
+    /// cells (`lethal`, row-major from cell (0, 0), as `nav_msgs/OccupancyGrid` orders them),
+    /// in the map's grid frame: cell (0, 0)'s corner at the origin, x along rows. `None` when
+    /// `lethal` does not hold `width * height` cells.
+    pub fn from_cells(
+        width: usize,
+        height: usize,
+        config: CostmapConfig,
+        inscribed: f32,
+        lethal: Vec<bool>,
+    ) -> Option<Self> {
+        if width == 0 || height == 0 || lethal.len() != width.checked_mul(height)? {
+            return None;
+        }
+        let mut m = Self::empty(Vec2::ZERO, width, height, config, inscribed);
+        m.static_lethal = lethal;
+        m.inflate_static();
+        Some(m)
+    }
+
+    /// A costmap with no obstacles yet.
+    fn empty(origin: Vec2, width: usize, height: usize, config: CostmapConfig, inscribed: f32) -> Self {
+        let r = config.resolution;
+        let mut kernel = Vec::new();
+        let reach = (config.inflation_radius.max(inscribed) / r).ceil() as i32;
+        for dy in -reach..=reach {
+            for dx in -reach..=reach {
+                let d = ((dx * dx + dy * dy) as f32).sqrt() * r;
+                let c = inflation_cost(d, inscribed, &config);
+                if c > 0 {
+                    kernel.push((dx, dy, c));
+                }
+            }
+        }
+        Self {
+            origin,
+            width,
+            height,
+            static_lethal: vec![false; width * height],
+            static_cost: vec![0; width * height],
+            marks: vec![false; width * height],
+            cost: vec![0; width * height],
+            kernel,
+            config,
+        }
+    }
+
+    /// Inflates the static layer's obstacles into the static and combined costs.
+    fn inflate_static(&mut self) {
+        let mut static_cost = vec![0u8; self.width * self.height];
+        for k in (0..self.width * self.height).filter(|k| self.static_lethal[*k]) {
+            self.stamp(&mut static_cost, k);
+        }
+        self.static_cost = static_cost;
+        self.cost.clone_from(&self.static_cost);
     }
 
     fn stamp(&self, grid: &mut [u8], k: usize) {

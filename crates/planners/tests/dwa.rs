@@ -78,6 +78,27 @@ fn astar_goes_around_a_wall() {
 }
 
 #[test]
+fn a_costmap_from_map_cells_inflates_as_one_from_the_world() {
+    // The same wall as obstacle cells of a 4 x 4 m grid (origin at its corner) and as a world
+    // shape: the inflated costs agree cell for cell, and A* goes round it on either.
+    let w = World::new(vec![Obstacle::new(ObstacleSpec::Wall { from: [0.0, -2.0], to: [0.0, 1.0] }).unwrap()]);
+    let from_world = Costmap::new(room(), CostmapConfig::default(), 0.2, Some(&w));
+    let (width, height) = from_world.size();
+    let lethal: Vec<bool> = (0..width * height).map(|k| from_world.cost(k % width, k / width) == LETHAL).collect();
+    assert!(lethal.iter().filter(|l| **l).count() >= 120, "the wall is 3 m of 5 cm cells, two wide");
+    let from_cells = Costmap::from_cells(width, height, CostmapConfig::default(), 0.2, lethal.clone()).unwrap();
+    for iy in 0..height {
+        for ix in 0..width {
+            assert_eq!(from_cells.cost(ix, iy), from_world.cost(ix, iy), "cell ({ix}, {iy})");
+        }
+    }
+    // The grid frame has its origin at cell (0, 0)'s corner: the room's (-1, -1) is (1, 1).
+    let path = astar::plan(&from_cells, Vec2::new(1.0, 1.0), Vec2::new(3.0, 1.0), 3.0).unwrap();
+    assert!(path.iter().any(|p| p.y > 3.2), "through the gap above the wall");
+    assert!(Costmap::from_cells(width, height + 1, CostmapConfig::default(), 0.2, lethal).is_none());
+}
+
+#[test]
 fn dwa_reaches_goals_in_the_static_room() {
     let setup = Arc::new(EnvSetup::from_scenario_name("static-room").unwrap());
     let (mut wins, n) = (0, 30);

@@ -8,9 +8,13 @@
 
 use crate::bus::{Bus, BusError, Qos, Reach, drain};
 use crate::follow_path::{FollowPathServer, GoalLimits};
-use crate::msg::{self, LaserScan, Odometry, Path as PlanMsg, PoseStamped, StringMsg, TFMessage, Time, TwistStamped};
+use crate::msg::{
+    self, LaserScan, OccupancyGrid, Odometry, Path as PlanMsg, PoseStamped, StringMsg, TFMessage, Time, TwistStamped,
+};
 use crate::ros_args::RosArgs;
-use rlnav_policy::PolicyRunner;
+use rlnav_planners::astar;
+use rlnav_planners::costmap::{Costmap, CostmapConfig};
+use rlnav_policy::{PolicyContract, PolicyRunner};
 use rlnav_sim::config::{ConfigError, Invalid, Validate, check_positive};
 use rlnav_sim::{Controller, Pose2, RobotObservation, Twist, Vec2, wrap_angle};
 use rustdds::mio1::{Events, Interest, Poll, Token};
@@ -42,6 +46,23 @@ pub struct NodeParams {
     pub lookahead: Option<f32>,
     /// `/tf` input, to bring goals given in another frame into the pose frame.
     pub tf_topic: String,
+    /// `/tf_static` input (transient local): fixed transforms, such as `map -> odom` where a
+    /// robot is localised once.
+    pub tf_static_topic: String,
+    /// `nav_msgs/OccupancyGrid` input (transient local, as `map_server` serves it). With a map
+    /// and a goal but no plan from a planner, the node plans itself: A* on the map inflated for
+    /// the robot, replanned every `replan_period`, followed as a plan. Empty: never plan.
+    pub map_topic: String,
+    /// How often the node replans on the map (s; Nav2's navigator replans once a second).
+    pub replan_period: f64,
+    /// The robot's radius for inflating the map (m): a path keeps its centre this far from
+    /// obstacles. Default: the footprint radius of the policy's robot (0.2 m if unknown).
+    pub robot_radius: Option<f32>,
+    /// Inflation of the planning costmap (m, Nav2's `inflation_radius`): paths keep away from
+    /// obstacles out to here, at a cost decaying with `cost_scaling_factor` (1/m).
+    pub inflation_radius: f32,
+    /// See `inflation_radius`.
+    pub cost_scaling_factor: f32,
     /// Velocity command output.
     pub cmd_vel_topic: String,
     /// Publish `geometry_msgs/TwistStamped` instead of `Twist` (ROS 2 Jazzy's Nav2 default).
@@ -120,6 +141,12 @@ impl Default for NodeParams {
             plan_topic: "plan".into(),
             lookahead: None,
             tf_topic: "/tf".into(),
+            tf_static_topic: "/tf_static".into(),
+            map_topic: "map".into(),
+            replan_period: 1.0,
+            robot_radius: None,
+            inflation_radius: 0.55,
+            cost_scaling_factor: 3.0,
             cmd_vel_topic: "cmd_vel".into(),
             cmd_vel_stamped: false,
             base_frame: "base_link".into(),
@@ -225,7 +252,7 @@ impl NodeParams {
     }
 
     /// Every topic parameter (`pose_topic` empty when unused).
-    fn topics_mut(&mut self) -> [&mut String; 8] {
+    fn topics_mut(&mut self) -> [&mut String; 10] {
         [
             &mut self.scan_topic,
             &mut self.odom_topic,
@@ -233,6 +260,8 @@ impl NodeParams {
             &mut self.goal_topic,
             &mut self.plan_topic,
             &mut self.tf_topic,
+            &mut self.tf_static_topic,
+            &mut self.map_topic,
             &mut self.cmd_vel_topic,
             &mut self.status_topic,
         ]
@@ -310,6 +339,7 @@ impl Validate for NodeParams {
             ("pose_timeout", self.pose_timeout),
             ("failure_tolerance", self.failure_tolerance),
             ("movement_time_allowance", self.movement_time_allowance),
+            ("replan_period", self.replan_period),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(Invalid::new(k, "a positive number of seconds"));
@@ -321,6 +351,9 @@ impl Validate for NodeParams {
             ("max_angular", self.max_angular),
             ("lookahead", self.lookahead),
             ("required_movement_radius", Some(self.required_movement_radius)),
+            ("robot_radius", self.robot_radius),
+            ("inflation_radius", Some(self.inflation_radius)),
+            ("cost_scaling_factor", Some(self.cost_scaling_factor)),
         ] {
             if let Some(v) = v {
                 check_positive(k, v)?;
@@ -335,6 +368,7 @@ impl Validate for NodeParams {
             ("goal_topic", &self.goal_topic),
             ("plan_topic", &self.plan_topic),
             ("tf_topic", &self.tf_topic),
+            ("tf_static_topic", &self.tf_static_topic),
             ("cmd_vel_topic", &self.cmd_vel_topic),
             ("status_topic", &self.status_topic),
             ("follow_path_action", &self.follow_path_action),
@@ -346,8 +380,10 @@ impl Validate for NodeParams {
                 ));
             }
         }
-        if !self.pose_topic.is_empty() && !crate::ros_args::valid_name(&self.pose_topic) {
-            return Err(Invalid::new("pose_topic", format!("a topic name or empty, got `{}`", self.pose_topic)));
+        for (k, t) in [("pose_topic", &self.pose_topic), ("map_topic", &self.map_topic)] {
+            if !t.is_empty() && !crate::ros_args::valid_name(t) {
+                return Err(Invalid::new(k, format!("a topic name or empty, got `{t}`")));
+            }
         }
         Ok(())
     }
@@ -394,6 +430,37 @@ struct Plan {
     points: Vec<Vec2>,
     /// The segment the robot's projection lay on last (it only moves forward).
     progress: usize,
+    /// Planned by the node on its map (replanned as it goes), not received.
+    own: bool,
+}
+
+/// A map to plan on: its frame, where its grid lies in it, and the grid as an inflated
+/// costmap in the grid's own frame.
+struct MapPlanner {
+    frame: String,
+    origin: Pose2,
+    /// Metres per costmap cell (the map's, or coarser for a very large map).
+    resolution: f32,
+    costmap: Costmap,
+}
+
+/// Map cells of this value or more are obstacles (`map_server`'s `occupied_thresh` 0.65).
+pub const MAP_OCCUPIED: i8 = 65;
+
+/// Larger maps are planned on coarser cells, so that a replan stays within milliseconds.
+pub const MAP_MAX_CELLS: usize = 1 << 20;
+
+/// How much A* prefers paths away from obstacles (the DWA baseline's `cost_weight`).
+const PLAN_COST_WEIGHT: f32 = 3.0;
+
+/// The footprint radius of the contract's robot when rlnav knows it (a shipped robot), else the
+/// largest of the robots it was trained across, else 0.2 m.
+fn default_robot_radius(contract: &PolicyContract) -> f32 {
+    rlnav_sim::RobotSpec::load(&contract.robot)
+        .map(|r| r.footprint().radius())
+        .ok()
+        .or(contract.envelope.as_ref().map(|e| e.footprint_radius[1]))
+        .unwrap_or(0.2)
 }
 
 pub use rlnav_sim::plan::plan_subgoal;
@@ -418,6 +485,13 @@ pub struct PolicyNode {
     /// Why the last goal could not be used (it stops the robot until a usable goal arrives).
     goal_error: Option<String>,
     tf: BTreeMap<(String, String), Pose2>,
+    map: Option<MapPlanner>,
+    /// When the node last planned on its map (s, the node's clock).
+    planned_at: Option<f64>,
+    /// Why planning on the map failed last (said once until it changes).
+    plan_failure: Option<String>,
+    /// Lines to log (see [`PolicyNode::take_notes`]).
+    notes: Vec<String>,
     reached: bool,
     last_command: Twist,
     started: Option<f64>,
@@ -458,6 +532,10 @@ impl PolicyNode {
             pending_goal: None,
             goal_error: None,
             tf: BTreeMap::new(),
+            map: None,
+            planned_at: None,
+            plan_failure: None,
+            notes: Vec::new(),
             reached: false,
             last_command: Twist::default(),
             started: None,
@@ -516,6 +594,141 @@ impl PolicyNode {
         self.remaining = None;
         self.pending_goal = None;
         self.goal_error = None;
+        self.planned_at = None;
+    }
+
+    /// Lines for the log since the last call (a map taken or refused, planning that failed).
+    pub fn take_notes(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.notes)
+    }
+
+    /// Whether the node holds a map to plan on.
+    pub fn has_map(&self) -> bool {
+        self.map.is_some()
+    }
+
+    /// A map arrived (`map_topic`): it replaces the one held, and plans made on the old one are
+    /// made again. A map that does not describe itself consistently is refused with a note.
+    pub fn on_map(&mut self, m: &OccupancyGrid) {
+        match self.map_planner(m) {
+            Ok(map) => {
+                let (w, h) = map.costmap.size();
+                self.notes.push(format!(
+                    "map in `{}`: {} x {} cells of {} m{}",
+                    map.frame,
+                    m.info.width,
+                    m.info.height,
+                    m.info.resolution,
+                    if map.resolution > m.info.resolution {
+                        format!(", planned on {w} x {h} cells of {} m", map.resolution)
+                    } else {
+                        String::new()
+                    }
+                ));
+                self.map = Some(map);
+                self.planned_at = None;
+            }
+            Err(why) => {
+                self.rejected += 1;
+                self.notes.push(format!("map refused: {why}"));
+            }
+        }
+    }
+
+    fn map_planner(&self, m: &OccupancyGrid) -> Result<MapPlanner, String> {
+        let info = &m.info;
+        let (width, height) = (info.width as usize, info.height as usize);
+        if !(info.resolution.is_finite() && info.resolution > 0.0) {
+            return Err(format!("info.resolution is {}, expected a positive number of metres", info.resolution));
+        }
+        if width == 0 || height == 0 || width.checked_mul(height) != Some(m.data.len()) {
+            return Err(format!(
+                "info.width x info.height is {width} x {height}, but data holds {} cells",
+                m.data.len()
+            ));
+        }
+        let origin =
+            finite_pose(&info.origin).ok_or("info.origin is not a finite pose with a unit quaternion".to_string())?;
+        if m.header.frame_id.is_empty() {
+            return Err("header.frame_id is empty, expected the map's frame (`map`)".into());
+        }
+        // Coarser cells for a very large map: a coarse cell is an obstacle when any of its fine
+        // cells is.
+        let mut factor = 1;
+        while width.div_ceil(factor) * height.div_ceil(factor) > MAP_MAX_CELLS {
+            factor += 1;
+        }
+        let (cw, ch) = (width.div_ceil(factor), height.div_ceil(factor));
+        let mut lethal = vec![false; cw * ch];
+        for (k, v) in m.data.iter().enumerate() {
+            // Unknown cells (-1) are passable, as Nav2's planner has them by default.
+            if *v >= MAP_OCCUPIED {
+                lethal[(k / width / factor) * cw + (k % width) / factor] = true;
+            }
+        }
+        let resolution = info.resolution * factor as f32;
+        let radius = self.params.robot_radius.unwrap_or_else(|| default_robot_radius(self.runner.contract()));
+        let config = CostmapConfig {
+            resolution,
+            inflation_radius: self.params.inflation_radius,
+            cost_scaling_factor: self.params.cost_scaling_factor,
+            ..CostmapConfig::default()
+        };
+        let costmap = Costmap::from_cells(cw, ch, config, radius, lethal).ok_or("the grid is empty")?;
+        Ok(MapPlanner { frame: m.header.frame_id.clone(), origin, resolution, costmap })
+    }
+
+    /// With a map, a goal and no plan from a planner: plans (again, once `replan_period` has
+    /// passed) from the robot at `robot` (pose frame) to the goal. Where no path is found, or
+    /// the map's frame has no transform, the plan is dropped and the policy steers at the goal
+    /// itself (a note says why).
+    fn plan_on_map(&mut self, robot: Pose2, now: f64) {
+        let (Some(map), Some(goal)) = (&self.map, self.goal) else { return };
+        if self.reached || self.plan.as_ref().is_some_and(|p| !p.own) {
+            return;
+        }
+        if self.planned_at.is_some_and(|t| now - t < self.params.replan_period) {
+            return;
+        }
+        self.planned_at = Some(now);
+        let pose_frame = self.pose_frame.as_deref().unwrap_or_default();
+        let planned = match self.lookup(pose_frame, &map.frame) {
+            None => Err(format!("no transform from the map's frame `{}` to `{pose_frame}`", map.frame)),
+            Some(t) => {
+                // Map frame, then the grid's frame.
+                let (from, to) = (t.to_local(robot.position()), t.to_local(goal));
+                let (a, b) = (map.origin.to_local(from), map.origin.to_local(to));
+                match astar::plan(&map.costmap, a, b, PLAN_COST_WEIGHT) {
+                    Some(cells) => {
+                        let mut points: Vec<Vec2> = cells.into_iter().map(|c| map.origin.to_parent(c)).collect();
+                        // The goal itself, not the centre of its cell.
+                        if let Some(last) = points.last_mut() {
+                            *last = to;
+                        }
+                        Ok(Plan { frame: map.frame.clone(), points, progress: 0, own: true })
+                    }
+                    None => Err(format!(
+                        "no path on the map from ({:.2}, {:.2}) to ({:.2}, {:.2}) in `{}`",
+                        from.x, from.y, to.x, to.y, map.frame
+                    )),
+                }
+            }
+        };
+        match planned {
+            Ok(plan) => {
+                self.plan = Some(plan);
+                if self.plan_failure.take().is_some() {
+                    self.notes.push("planning on the map again".into());
+                }
+            }
+            Err(why) => {
+                self.plan = None;
+                if self.plan_failure.as_ref() != Some(&why) {
+                    self.notes.push(format!("{why}: steering at the goal"));
+                    self.plan_failure = Some(why);
+                }
+            }
+        }
     }
 
     /// A scan arrived at `now` (s, the node's clock).
@@ -659,12 +872,17 @@ impl PolicyNode {
         } else {
             self.lookup(&pose_frame, frame).map(|t| t.to_parent(Vec2::new(x as f32, y as f32)))
         };
-        // A goal pose replaces any plan.
-        self.plan = None;
+        // A goal pose replaces any plan, except the node's own plan to the same goal (a goal
+        // re-sent, as the sim bridge does every second).
+        let same = goal.zip(self.goal).is_some_and(|(a, b)| (a - b).length() < 1e-3);
+        if !(same && self.plan.as_ref().is_some_and(|p| p.own)) {
+            self.plan = None;
+            self.planned_at = None;
+        }
         match goal {
             Some(g) => {
                 self.goal_error = None;
-                if self.goal != Some(g) {
+                if !same {
                     self.goal = Some(g);
                     self.reached = false;
                     self.runner.reset();
@@ -711,7 +929,7 @@ impl PolicyNode {
             self.reached = false;
             self.runner.reset();
         }
-        self.plan = Some(Plan { frame: m.header.frame_id.clone(), points, progress: 0 });
+        self.plan = Some(Plan { frame: m.header.frame_id.clone(), points, progress: 0, own: false });
     }
 
     /// The goal and the point to steer to for a robot at `pose` (pose frame): the goal alone,
@@ -771,6 +989,7 @@ impl PolicyNode {
         if now - pose.received > self.params.pose_timeout {
             return stop(format!("no pose for {:.2} s", now - pose.received));
         }
+        self.plan_on_map(pose.pose, now);
         let (goal, target) = match self.targets(pose.pose) {
             Ok(Some(g)) => g,
             Ok(None) => return (Twist::default(), NodeState::Idle),
@@ -877,6 +1096,14 @@ pub fn run_node(
     let goal_sub = bus.subscription::<PoseStamped>(&p.goal_topic, Qos::Default)?;
     let plan_sub = bus.subscription::<PlanMsg>(&p.plan_topic, Qos::Default)?;
     let tf_sub = bus.subscription::<TFMessage>(&p.tf_topic, Qos::Default)?;
+    // Transient local, as tf2's static broadcaster and map_server publish: a late joiner still
+    // gets them.
+    let mut tf_static_sub = bus.subscription::<TFMessage>(&p.tf_static_topic, Qos::Latched)?;
+    let mut map_sub = if p.map_topic.is_empty() {
+        None
+    } else {
+        Some(bus.subscription::<OccupancyGrid>(&p.map_topic, Qos::Latched)?)
+    };
     let twist_pub =
         if p.cmd_vel_stamped { None } else { Some(bus.publisher::<msg::Twist>(&p.cmd_vel_topic, p.cmd_vel_qos)?) };
     let stamped_pub =
@@ -917,6 +1144,10 @@ pub fn run_node(
     if let Some(s) = pose_sub.as_mut() {
         watch(s, 4)?;
     }
+    watch(&mut tf_static_sub, 9)?;
+    if let Some(s) = map_sub.as_mut() {
+        watch(s, 10)?;
+    }
     if let Some(f) = follow_path.as_mut() {
         f.register(reg, 6)
             .map_err(|e| BusError::Create { what: "poll registration".into(), message: e.to_string() })?;
@@ -932,8 +1163,14 @@ pub fn run_node(
     let mut pending_scan = false;
     while !stop.load(Ordering::Relaxed) {
         let now = now_since(start);
-        for m in drain(&tf_sub, &mut dropped) {
-            node.on_tf(&m);
+        for m in drain(&tf_sub, &mut dropped).iter().chain(&drain(&tf_static_sub, &mut dropped)) {
+            node.on_tf(m);
+        }
+        if let Some(s) = &map_sub {
+            // Only the newest map counts.
+            if let Some(m) = drain(s, &mut dropped).last() {
+                node.on_map(m);
+            }
         }
         if let Some(s) = &clock_sub {
             if let Some(c) = drain(s, &mut dropped).last() {
@@ -1013,6 +1250,9 @@ pub fn run_node(
                 // With use_sim_time and no /clock yet, zero, as rclcpp stamps before the first.
                 let stamp = if p.use_sim_time { sim_time.unwrap_or_default() } else { wall() };
                 let _ = pb.publish(TwistStamped { header: msg::Header::new(stamp, &p.base_frame), twist });
+            }
+            for line in node.take_notes() {
+                eprintln!("[{}] {line}", p.node());
             }
             let state = node.state().to_string();
             if state != last_state {

@@ -23,7 +23,10 @@ fn check<M: RosMessage + PartialEq + std::fmt::Debug>(expected: M) {
     let decoded: M = from_cdr(bytes).unwrap();
     assert_eq!(decoded, expected, "{}: golden bytes decode to the expected message", M::type_name());
     let ours = to_cdr(&expected);
-    assert_eq!(ours.len(), bytes.len(), "{}: encoded length", M::type_name());
+    // Fast CDR rounds a message shorter than one 4-byte word up to it (rclpy's `std_msgs/Empty`
+    // is its one byte and three of padding); longer ones end where their data ends.
+    let padded = if ours.len() < 8 { ours.len().next_multiple_of(4) } else { ours.len() };
+    assert_eq!(padded, bytes.len(), "{}: encoded length", M::type_name());
     for (i, (a, b)) in ours.iter().zip(bytes).enumerate() {
         assert!(a == b || *a == 0, "{}: byte {i} is {a:#04x}, ROS 2 wrote {b:#04x}", M::type_name());
     }
