@@ -105,8 +105,12 @@ fn interop_with(mode: &str, rlnav: &[&str], domain: u16, seconds: u32) -> Option
         "{start}timeout {} '{python}' tools/ros2_interop.py {mode} --seconds {seconds}; R=$?\n{stop}exit $R",
         seconds + 20
     );
-    let dir =
-        std::env::temp_dir().join(format!("rlnav-interop-{}-{}", mode.replace([' ', '/'], "_"), std::process::id()));
+    // The domain too: two tests may run one peer mode at once (and would share the files).
+    let dir = std::env::temp_dir().join(format!(
+        "rlnav-interop-{}-{}-{domain}",
+        mode.replace([' ', '/'], "_"),
+        std::process::id()
+    ));
     std::fs::create_dir_all(&dir).unwrap();
     let script = format!("cd '{}'\n{}", dir.display(), script.replace("tools/", &format!("{ROOT}/tools/")));
     let (ok, stdout, stderr) = run_script(&script, domain);
