@@ -11,21 +11,22 @@ use std::time::Instant;
 
 fn main() {
     let sides: Vec<usize> = std::env::args().skip(1).filter_map(|a| a.parse().ok()).collect();
-    let sides = if sides.is_empty() { vec![160, 400, 1024] } else { sides };
+    let sides = if sides.is_empty() { vec![160, 400, 512, 1024] } else { sides };
     let r = 0.05f32;
     for n in sides {
-        // Shelves: 0.6 m wide, 4 m long, every 2.6 m across and 6 m along.
+        let side = n as f32 * r;
+        // Shelves: 0.6 m wide, 4 m long, every 2.6 m across and 6 m along, 1 m off the edges.
         let lethal: Vec<bool> = (0..n * n)
             .map(|k| {
                 let (x, y) = ((k % n) as f32 * r, (k / n) as f32 * r);
                 let (sx, sy) = (x % 2.6, y % 6.0);
-                x > 1.0 && y > 1.0 && sx > 2.0 && sy < 4.0
+                let inside = x > 1.0 && y > 1.0 && x < side - 1.0 && y < side - 1.0;
+                inside && sx > 2.0 && sy < 4.0
             })
             .collect();
         let t = Instant::now();
         let map = Costmap::from_cells(n, n, CostmapConfig::default(), 0.2, lethal).expect("sizes agree");
         let build = t.elapsed();
-        let side = n as f32 * r;
         let (a, b) = (Vec2::new(0.5, 0.5), Vec2::new(side - 0.5, side - 0.5));
         let t = Instant::now();
         let mut cells = 0;
