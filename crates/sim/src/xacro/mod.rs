@@ -19,7 +19,7 @@
 //! `xacro.` helpers in expressions (`xacro.load_yaml`). Comments are dropped, so
 //! `xacro:eval-comments` has no effect.
 
-mod dom;
+pub(crate) mod dom;
 mod expr;
 mod packages;
 

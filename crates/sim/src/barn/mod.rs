@@ -10,7 +10,7 @@
 use crate::config::{ConfigError, Invalid, Validate};
 use crate::geometry::{ObstacleSpec, Pose2};
 use crate::scenario::{Placement, ScenarioSpec};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -19,44 +19,67 @@ pub const SHIPPED_NAME: &str = "barn";
 
 /// The BARN worlds shipped in `assets/barn/barn_worlds.json` (MIT, the BARN Challenge; see the
 /// README and LICENSE there), embedded so that they work from any folder.
-pub const SHIPPED_BARN: &str = include_str!("../../../assets/barn/barn_worlds.json");
+pub const SHIPPED_BARN: &str = include_str!("../../../../assets/barn/barn_worlds.json");
+
+pub mod difficulty;
+pub mod import;
+
+pub use difficulty::{BarnGrid, Difficulty};
+pub use import::{Split, import_dir};
+
+/// How the challenge scores a run (written into imported files' `about`).
+const SCORE_NOTE: &str = "success * optimal_time / clip(actual_time, k*optimal_time, 8*optimal_time), optimal_time = \
+     reference path length / 2 m/s; k = 2 since 2024, k = 4 before";
+/// The challenge's robot (written into imported files' `about`).
+const ROBOT_NOTE: &str = "Clearpath Jackal: 0.508 x 0.430 m footprint, max 2.0 m/s (baselines run at 0.5 m/s); lidar \
+     Hokuyo UST-10: 720 beams over 270 deg, 0.1-30 m";
 
 /// What errors call the embedded file.
 const SHIPPED_LABEL: &str = "<embedded BARN worlds `barn`>";
 
-#[derive(Deserialize)]
+#[derive(Serialize, Deserialize)]
 struct BarnFile {
     about: About,
     worlds: BTreeMap<String, Entry>,
 }
 
-#[derive(Deserialize)]
+#[derive(Serialize, Deserialize)]
 struct About {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    source: Option<String>,
     cylinder_radius_m: f32,
     start: StartPose,
     goal: GoalPoint,
     success_radius_m: f32,
     time_limit_s: f32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    score: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    robot: Option<String>,
 }
 
-#[derive(Deserialize)]
+#[derive(Serialize, Deserialize)]
 struct StartPose {
     x: f32,
     y: f32,
     yaw: f32,
 }
 
-#[derive(Deserialize)]
+#[derive(Serialize, Deserialize)]
 struct GoalPoint {
     x: f32,
     y: f32,
 }
 
-#[derive(Deserialize)]
+#[derive(Serialize, Deserialize)]
 struct Entry {
     cylinders: Vec<[f32; 2]>,
     optimal_time_s: f32,
     reference_path_length_m: f32,
+    /// The dataset's difficulty metrics along the reference path (files made before rlnav
+    /// measured them have none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    difficulty: Option<Difficulty>,
 }
 
 /// One BARN world as a scenario, with what the challenge's score needs.
@@ -72,6 +95,8 @@ pub struct BarnWorld {
     pub optimal_time: f32,
     /// Reference path length (m).
     pub path_length: f32,
+    /// The dataset's difficulty metrics, when the file has them.
+    pub difficulty: Option<Difficulty>,
 }
 
 /// The worlds of a BARN data file and the challenge's rules.
@@ -159,6 +184,7 @@ impl BarnSet {
                 spec,
                 optimal_time: e.optimal_time_s,
                 path_length: e.reference_path_length_m,
+                difficulty: e.difficulty,
             });
         }
         worlds.sort_by_key(|w| w.index);
@@ -171,12 +197,20 @@ impl BarnSet {
     }
 }
 
-/// The BARN Challenge score of one run: `success * optimal / clip(time, 2 optimal, 8 optimal)`.
+/// The BARN Challenge score of one run as scored since 2024:
+/// `success * optimal / clip(time, 2 optimal, 8 optimal)` ([`barn_score_k`] with k = 2).
 pub fn barn_score(success: bool, time: f32, optimal_time: f32) -> f32 {
+    barn_score_k(success, time, optimal_time, 2.0)
+}
+
+/// The BARN Challenge score with lower clip `k`: `success * optimal / clip(time, k optimal,
+/// 8 optimal)`. The challenge used k = 4 until 2023 (best score 0.25) and k = 2 since 2024
+/// (best 0.5); published results are quoted under one or the other.
+pub fn barn_score_k(success: bool, time: f32, optimal_time: f32, k: f32) -> f32 {
     if !success {
         return 0.0;
     }
-    optimal_time / time.clamp(2.0 * optimal_time, 8.0 * optimal_time)
+    optimal_time / time.clamp(k * optimal_time, 8.0 * optimal_time)
 }
 
 /// Whether a scenario name refers to one BARN world: `barn#world_N` (the embedded worlds) or
@@ -212,5 +246,7 @@ mod tests {
         assert_eq!(barn_score(true, 5.0, 5.0), 0.5, "faster than 2x optimal counts as 2x");
         assert_eq!(barn_score(true, 20.0, 5.0), 0.25);
         assert_eq!(barn_score(true, 100.0, 5.0), 0.125, "slower than 8x optimal counts as 8x");
+        assert_eq!(barn_score_k(true, 5.0, 5.0, 4.0), 0.25, "k = 4: the older ceiling");
+        assert_eq!(barn_score_k(true, 30.0, 5.0, 4.0), 5.0 / 30.0);
     }
 }
