@@ -4,7 +4,7 @@
 use crate::batch::{BatchPolicy, evaluate_batch};
 use crate::controllers::{check, for_setup};
 use crate::evaluate::{EvalRun, EvalSummary, evaluate_controller};
-use rlnav_sim::barn::barn_score;
+use rlnav_sim::barn::{Difficulty, barn_score_k};
 use rlnav_sim::config::{ConfigError, Invalid, Validate, preset_or_file};
 use rlnav_sim::task::{EnvSetup, SimError, TaskConfig};
 use rlnav_sim::{EpisodeStats, RobotSpec, ScenarioSpec};
@@ -56,9 +56,36 @@ pub struct BarnSuite {
     /// binary; or the path of another BARN data file (`barn_worlds.json`).
     #[serde(default = "shipped_barn")]
     pub file: String,
-    /// Every `every`-th world of the file, in index order (default 1: all).
+    /// Every `every`-th world of the file, in index order (default 1: all), after `split`.
     #[serde(default = "one")]
     pub every: usize,
+    /// `all` (the default), `test` (the challenge's 50 test worlds: indices 0, 6, ..., 294)
+    /// or `train` (the other indices).
+    #[serde(default)]
+    pub split: BarnSplit,
+}
+
+/// A split of the BARN worlds (see [`rlnav_sim::barn::Split`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BarnSplit {
+    /// Every world.
+    #[default]
+    All,
+    /// Indices that are multiples of 6.
+    Test,
+    /// The others.
+    Train,
+}
+
+impl From<BarnSplit> for rlnav_sim::barn::Split {
+    fn from(s: BarnSplit) -> Self {
+        match s {
+            BarnSplit::All => Self::All,
+            BarnSplit::Test => Self::Test,
+            BarnSplit::Train => Self::Train,
+        }
+    }
 }
 
 fn one() -> usize {
@@ -85,9 +112,18 @@ impl Validate for SuiteSpec {
 }
 
 impl SuiteSpec {
-    /// A shipped suite by name, or a YAML file.
+    /// A shipped suite by name, or a YAML file (whose relative `barn.file` is read from the
+    /// suite's folder).
     pub fn load(name_or_path: &str) -> Result<Self, ConfigError> {
-        preset_or_file("suite", SUITE_PRESETS, name_or_path)
+        let mut suite: Self = preset_or_file("suite", SUITE_PRESETS, name_or_path)?;
+        let from_file = !SUITE_PRESETS.iter().any(|(n, _)| *n == name_or_path);
+        if let (Some(b), true) = (&mut suite.barn, from_file) {
+            let dir = std::path::Path::new(name_or_path).parent().unwrap_or(std::path::Path::new(""));
+            if b.file != rlnav_sim::barn::SHIPPED_NAME && std::path::Path::new(&b.file).is_relative() {
+                b.file = dir.join(&b.file).display().to_string();
+            }
+        }
+        Ok(suite)
     }
 }
 
@@ -125,8 +161,15 @@ pub struct CellResult {
     pub controller: String,
     /// Aggregate figures.
     pub summary: EvalSummary,
-    /// Mean BARN Challenge score over the episodes (BARN worlds only).
+    /// Mean BARN Challenge score over the episodes as scored since 2024 (k = 2, best 0.5;
+    /// BARN worlds only).
     pub barn_score: Option<f32>,
+    /// The same with the challenge's earlier lower clip (k = 4, best 0.25).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub barn_score_k4: Option<f32>,
+    /// The BARN world's difficulty metrics (Perille et al. 2020), when its file has them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub difficulty: Option<Difficulty>,
     /// Every episode, in seed order.
     pub episodes: Vec<EpisodeStats>,
     /// Every episode step by step (distance to goal over time, path, lidar minimum).
@@ -156,8 +199,15 @@ pub fn suite_setups(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<Arc<En
     Ok(suite_setups_scored(suite, robot, &TaskConfig::default())?.into_iter().map(|(s, _)| s).collect())
 }
 
-/// A scenario compiled for the run, with its BARN optimal time when it is a BARN world.
-type ScoredSetup = (Arc<EnvSetup>, Option<f32>);
+/// What scoring a BARN world needs: its optimal time, and its difficulty for the tables.
+#[derive(Clone, Copy, Debug)]
+struct BarnRef {
+    optimal_time: f32,
+    difficulty: Option<Difficulty>,
+}
+
+/// A scenario compiled for the run, with what its score needs when it is a BARN world.
+type ScoredSetup = (Arc<EnvSetup>, Option<BarnRef>);
 
 /// As [`suite_setups`], with `base` in place of the default task (BARN's rules on top).
 fn suite_setups_scored(
@@ -180,9 +230,20 @@ fn suite_setups_scored(
             collision_range: 0.0,
             ..base
         };
-        for w in set.worlds.iter().step_by(b.every) {
+        let split = rlnav_sim::barn::Split::from(b.split);
+        let worlds: Vec<_> = set.worlds.iter().filter(|w| split.contains(w.index)).collect();
+        if worlds.is_empty() {
+            return Err(ConfigError::Invalid {
+                file: b.file.clone(),
+                key: "worlds".into(),
+                expected: format!("worlds in the suite's `{:?}` split; the file has none", b.split),
+            }
+            .into());
+        }
+        for w in worlds.into_iter().step_by(b.every) {
             let robot = RobotSpec::load(robot.unwrap_or(&w.spec.robot))?;
-            setups.push((Arc::new(EnvSetup::new(w.spec.clone(), robot, task.clone())?), Some(w.optimal_time)));
+            let scored = BarnRef { optimal_time: w.optimal_time, difficulty: w.difficulty };
+            setups.push((Arc::new(EnvSetup::new(w.spec.clone(), robot, task.clone())?), Some(scored)));
         }
     }
     Ok(setups)
@@ -289,10 +350,9 @@ pub fn run_suite_with(
             scenario: setup.scenario.spec().name.clone(),
             controller: controller.to_string(),
             summary,
-            barn_score: optimal.map(|o| {
-                let n = eps.len().max(1) as f32;
-                eps.iter().map(|e| barn_score(e.outcome == rlnav_sim::Outcome::Success, e.time, o)).sum::<f32>() / n
-            }),
+            barn_score: optimal.map(|b| mean_barn_score(&eps, b.optimal_time, 2.0)),
+            barn_score_k4: optimal.map(|b| mean_barn_score(&eps, b.optimal_time, 4.0)),
+            difficulty: optimal.and_then(|b| b.difficulty),
             episodes: eps,
             traces,
         };
@@ -318,6 +378,12 @@ pub fn run_suite_with(
         }
     }
     Ok(SuiteResult { suite: suite.name.clone(), robot: setups[0].0.robot.name.clone(), seed, cells, warnings })
+}
+
+/// The mean BARN score of episodes in a world of optimal time `optimal` with lower clip `k`.
+fn mean_barn_score(eps: &[EpisodeStats], optimal: f32, k: f32) -> f32 {
+    let n = eps.len().max(1) as f32;
+    eps.iter().map(|e| barn_score_k(e.outcome == rlnav_sim::Outcome::Success, e.time, optimal, k)).sum::<f32>() / n
 }
 
 /// `87% [79–92]`: a rate with its interval, in percent.
@@ -378,8 +444,8 @@ impl SuiteResult {
             self.suite,
             self.robot,
             self.seed,
-            if barn { " BARN score |" } else { "" },
-            if barn { "---|" } else { "" },
+            if barn { " BARN score (k=2) | BARN score (k=4) |" } else { "" },
+            if barn { "---|---|" } else { "" },
         );
         for c in &self.cells {
             let pick = |f: &dyn Fn(&EpisodeStats) -> f32, only_wins: bool| {
@@ -407,7 +473,11 @@ impl SuiteResult {
                 pick(&|e| e.mean_speed, false),
                 pick(&|e| e.mean_angular_acceleration, false),
                 pick(&|e| e.final_distance, false),
-                c.barn_score.map_or(String::new(), |b| format!(" {b:.3} |")),
+                match (c.barn_score, c.barn_score_k4) {
+                    (Some(b), Some(b4)) => format!(" {b:.3} | {b4:.3} |"),
+                    _ if barn => " – | – |".into(),
+                    _ => String::new(),
+                },
             );
         }
         for w in &self.warnings {
@@ -429,17 +499,65 @@ impl SuiteResult {
             );
         }
         if barn {
-            let scores: Vec<(&str, f32)> = {
-                let mut by: std::collections::BTreeMap<&str, (f32, usize)> = Default::default();
-                for c in self.cells.iter().filter(|c| c.barn_score.is_some()) {
-                    let e = by.entry(c.controller.as_str()).or_default();
-                    e.0 += c.barn_score.unwrap_or(0.0);
-                    e.1 += 1;
-                }
-                by.into_iter().map(|(k, (sum, n))| (k, sum / n as f32)).collect()
+            s += &self.barn_markdown();
+        }
+        s
+    }
+
+    /// The BARN part of the report: each controller's mean score under both clips with its
+    /// success rate over the worlds, and one row per world (hardest first by characteristic
+    /// dimension, the narrowest gap along the path) with its difficulty metrics and each
+    /// controller's success and score.
+    pub fn barn_markdown(&self) -> String {
+        let barn_cells: Vec<&CellResult> = self.cells.iter().filter(|c| c.barn_score.is_some()).collect();
+        let controllers = first_seen(barn_cells.iter().map(|c| c.controller.as_str()));
+        let mut s = String::from(
+            "\nBARN Challenge score over the worlds (k = 2: scored since 2024, best 0.5; k = 4: until 2023, best 0.25):\n\n\
+             | controller | worlds | success | score (k=2) | score (k=4) |\n|---|---|---|---|---|\n",
+        );
+        for name in &controllers {
+            let mine: Vec<&&CellResult> = barn_cells.iter().filter(|c| c.controller == *name).collect();
+            let n = mine.len().max(1) as f32;
+            let mean = |f: &dyn Fn(&CellResult) -> f32| mine.iter().map(|c| f(c)).sum::<f32>() / n;
+            s += &format!(
+                "| {name} | {} | {:.1}% | {:.3} | {:.3} |\n",
+                mine.len(),
+                100.0 * mean(&|c| c.summary.success_rate),
+                mean(&|c| c.barn_score.unwrap_or(0.0)),
+                mean(&|c| c.barn_score_k4.unwrap_or(0.0)),
+            );
+        }
+        let worlds = first_seen(barn_cells.iter().map(|c| c.scenario.as_str()));
+        let difficulty = |w: &str| barn_cells.iter().find(|c| c.scenario == w).and_then(|c| c.difficulty);
+        if worlds.iter().all(|w| difficulty(w).is_none()) {
+            return s;
+        }
+        let mut order = worlds.clone();
+        order.sort_by(|a, b| {
+            let key = |w: &str| difficulty(w).map_or(f32::INFINITY, |d| d.characteristic_dimension);
+            key(a).total_cmp(&key(b))
+        });
+        s += "\nPer world, with its difficulty metrics along the reference path (cells of 0.15 m; Perille et al. 2020), \
+              narrowest first: success and score (k=2) per controller.\n\n\
+              | world | closest wall | visibility | dispersion | char. dimension | tortuosity |";
+        for name in &controllers {
+            s += &format!(" {name} |");
+        }
+        s += "\n|---|---|---|---|---|---|";
+        s += &"---|".repeat(controllers.len());
+        s += "\n";
+        for w in order {
+            let metrics = match difficulty(w) {
+                Some(d) => d.values().iter().map(|v| format!(" {v:.2} |")).collect::<String>(),
+                None => " – | – | – | – | – |".into(),
             };
-            s += "\nBARN score over the worlds (the challenge's metric, 0 to 0.5): ";
-            s += &scores.iter().map(|(k, v)| format!("{k} {v:.3}")).collect::<Vec<_>>().join(", ");
+            s += &format!("| {w} |{metrics}");
+            for name in &controllers {
+                s += &match barn_cells.iter().find(|c| c.scenario == w && c.controller == *name) {
+                    Some(c) => format!(" {:.0}% {:.3} |", 100.0 * c.summary.success_rate, c.barn_score.unwrap_or(0.0)),
+                    None => " – |".into(),
+                };
+            }
             s += "\n";
         }
         s

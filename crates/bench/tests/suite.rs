@@ -152,7 +152,14 @@ fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
             assert_eq!(score, 0.0);
         }
     }
-    assert!(r.markdown().contains("BARN score over the worlds"));
+    let md = r.markdown();
+    assert!(md.contains("BARN Challenge score over the worlds"), "{md}");
+    for c in &r.cells {
+        let (k2, k4) = (c.barn_score.unwrap(), c.barn_score_k4.unwrap());
+        // The earlier clip caps a success at 0.25 and never scores above the current one.
+        assert!(k4 <= 0.25 + 1e-6 && k4 <= k2 + 1e-6 && (k4 > 0.0) == (k2 > 0.0), "{k2} {k4}");
+        assert!(c.difficulty.is_some(), "the shipped worlds carry their difficulty");
+    }
     // The 360° Jetbot policy cannot drive the 270° Jackal: refused up front.
     let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
     assert!(
