@@ -6,7 +6,7 @@ mod commands;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use commands::{bench, demo, eval, export, inspect, latency, list, render, robot, ros2, sim_speed, train};
+use commands::{barn, bench, demo, eval, export, inspect, latency, list, render, robot, ros2, sim_speed, train};
 
 #[derive(Parser)]
 #[command(name = "rlnav", version, about = "End-to-end RL local planners for wheeled robots with a 2D lidar")]
@@ -44,6 +44,11 @@ enum Command {
     Render(render::Args),
     /// List the shipped scenarios and robots.
     List,
+    /// BARN Challenge worlds.
+    Barn {
+        #[command(subcommand)]
+        command: barn::Command,
+    },
     /// Robot files.
     Robot {
         #[command(subcommand)]
@@ -81,6 +86,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Inspect(a) => inspect::run(a),
         Command::Render(a) => render::run(a),
         Command::List => list::run(),
+        Command::Barn { command } => barn::run(command),
         Command::Robot { command } => robot::run(command),
         Command::Ros2 { command } => ros2::run(command),
     }

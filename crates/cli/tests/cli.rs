@@ -401,8 +401,10 @@ fn barn_worlds_run_from_any_folder() {
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let md = std::fs::read_to_string(dir.join("report/report.md")).unwrap();
-    assert_eq!(md.lines().filter(|l| l.starts_with("| barn-world_")).count(), 25, "{md}");
-    assert!(md.contains("BARN score over the worlds"), "{md}");
+    // One row per world in the results table and again in the per-world difficulty table.
+    assert_eq!(md.lines().filter(|l| l.starts_with("| barn-world_")).count(), 50, "{md}");
+    assert!(md.contains("BARN Challenge score over the worlds"), "{md}");
+    assert!(md.contains("| world | closest wall | visibility |"), "{md}");
     let out = run(&["list"]);
     assert!(String::from_utf8_lossy(&out.stdout).contains("barn#world_N"));
 }
@@ -432,4 +434,74 @@ fn eval_in_empty_room(model: &str, contract: &str, episodes: usize, dir: &std::p
     let ev: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
     assert_eq!(ev["episodes"].as_array().unwrap().len(), episodes);
     ev
+}
+
+/// `rlnav barn import` on a folder laid out as the challenge's (world files, path_files/):
+/// the data file and suites are written, the test suite runs under `bench`; a folder with a
+/// broken file writes nothing.
+#[test]
+fn barn_import_writes_suites_that_bench_runs_and_nothing_on_error() {
+    let dir = std::env::temp_dir().join(format!("rlnav-cli-barn-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let src = dir.join("BARN");
+    std::fs::create_dir_all(src.join("path_files")).unwrap();
+    // Two cylinders in the field, off the path; the path runs straight up row 15.
+    let model = |i: usize, x: f32, y: f32| {
+        format!(
+            "<model name='c{i}'><pose>{x} {y} 0 0 0 0</pose><link name='l'><collision name='c'><geometry>\
+             <cylinder><radius>0.075</radius><length>1</length></cylinder></geometry></collision></link></model>"
+        )
+    };
+    let world = format!(
+        "<sdf version='1.6'><world name='default'>{}{}</world></sdf>",
+        model(0, -4.425, 6.0),
+        model(1, -0.075, 8.0)
+    );
+    let mut path = b"\x93NUMPY\x01\x00".to_vec();
+    let header = "{'descr': '<i8', 'fortran_order': False, 'shape': (2, 2), }\n";
+    path.extend((header.len() as u16).to_le_bytes());
+    path.extend(header.as_bytes());
+    for v in [15i64, 0, 15, 29] {
+        path.extend(v.to_le_bytes());
+    }
+    for index in [0, 6] {
+        std::fs::write(src.join(format!("world_{index}.world")), &world).unwrap();
+        std::fs::write(src.join(format!("path_files/path_{index}.npy")), &path).unwrap();
+    }
+    let out_dir = dir.join("out");
+    let out = rlnav(&["barn", "import", src.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("read 2 worlds") && text.contains("2 of them test worlds"), "{text}");
+    let bench_dir = dir.join("bench");
+    let suite = out_dir.join("barn-test.yaml");
+    let out = rlnav(&[
+        "bench",
+        "--suite",
+        suite.to_str().unwrap(),
+        "--controller",
+        "dwa",
+        "--robot",
+        "jackal",
+        "--seed",
+        "1",
+        "--out",
+        bench_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(bench_dir.join("report.json")).unwrap()).unwrap();
+    let cells = report["suites"][0]["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 2, "two test worlds: {report}");
+    assert!(cells.iter().all(|c| c["barn_score"].as_f64().is_some()), "{report}");
+
+    // One malformed world: an error naming it, and no file written.
+    std::fs::write(src.join("world_6.world"), "<sdf><world>").unwrap();
+    let fresh = dir.join("fresh");
+    let out = rlnav(&["barn", "import", src.to_str().unwrap(), "--out", fresh.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("world_6.world"), "{err}");
+    assert!(!fresh.exists() || std::fs::read_dir(&fresh).unwrap().next().is_none(), "something was written");
+    std::fs::remove_dir_all(dir).ok();
 }

@@ -1,5 +1,6 @@
 //! One module per `rlnav` command (its arguments and its code), and what several share.
 
+pub mod barn;
 pub mod bench;
 pub mod demo;
 pub mod eval;
