@@ -82,6 +82,107 @@ impl Figure for DistanceFigure<'_> {
     }
 }
 
+/// `barn_score_vs_difficulty` (`.svg` or `.png`): one panel per difficulty metric of
+/// Perille et al. with each BARN world's score (k = 2) per controller against it, and each
+/// controller's mean score over the worlds in five bins of the metric as a line. `None` when
+/// `result` has no BARN world with difficulty metrics.
+pub fn barn_score_vs_difficulty(out: &Path, result: &SuiteResult) -> Result<Option<()>, String> {
+    let controllers = crate::suite::first_seen(result.cells.iter().map(|c| c.controller.as_str()));
+    let series: Vec<(&str, Vec<WorldPoint>)> = controllers
+        .iter()
+        .map(|name| {
+            let points = result
+                .cells
+                .iter()
+                .filter(|c| c.controller == *name)
+                .filter_map(|c| Some((c.difficulty?.values(), c.barn_score?)))
+                .collect();
+            (*name, points)
+        })
+        .filter(|(_, p): &(&str, Vec<WorldPoint>)| !p.is_empty())
+        .collect();
+    if series.is_empty() {
+        return Ok(None);
+    }
+    let figure = DifficultyFigure { title: &result.suite, series };
+    write_figure(out, (1500, 330), &figure).map_err(|e| format!("{}: {e}", out.display()))?;
+    Ok(Some(()))
+}
+
+/// A BARN world's five difficulty metrics and a controller's score there.
+type WorldPoint = ([f32; 5], f32);
+
+struct DifficultyFigure<'a> {
+    title: &'a str,
+    series: Vec<(&'a str, Vec<WorldPoint>)>,
+}
+
+impl Figure for DifficultyFigure<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        root.fill(&WHITE)?;
+        let root =
+            root.titled(&format!("{}: BARN score (k = 2) against world difficulty", self.title), ("sans-serif", 18))?;
+        let panels = root.split_evenly((1, 5));
+        let labels = [
+            "closest wall (cells)",
+            "average visibility (cells)",
+            "dispersion",
+            "characteristic dimension",
+            "tortuosity",
+        ];
+        for (m, (panel, label)) in panels.iter().zip(labels).enumerate() {
+            let xs = self.series.iter().flat_map(|(_, p)| p.iter().map(|(d, _)| d[m]));
+            let (lo, hi) = xs.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+            let pad = ((hi - lo) * 0.05).max(0.05);
+            let mut chart = ChartBuilder::on(panel)
+                .margin(8)
+                .x_label_area_size(35)
+                .y_label_area_size(if m == 0 { 45 } else { 30 })
+                .build_cartesian_2d(lo - pad..hi + pad, 0f32..0.52)?;
+            chart
+                .configure_mesh()
+                .x_desc(label)
+                .y_desc(if m == 0 { "score (k = 2)" } else { "" })
+                .x_labels(5)
+                .draw()?;
+            for (i, (name, points)) in self.series.iter().enumerate() {
+                let c = COLOURS[i % COLOURS.len()];
+                chart.draw_series(points.iter().map(|(d, s)| Circle::new((d[m], *s), 3, c.mix(0.5).filled())))?;
+                let bins = binned_means(points.iter().map(|(d, s)| (d[m], *s)), lo, hi, 5);
+                let line = chart.draw_series(LineSeries::new(bins, c.stroke_width(2)))?;
+                if m == 0 {
+                    let name = name.to_string();
+                    line.label(name)
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+                }
+            }
+            if m == 0 {
+                chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The mean of `y` in `bins` equal bins of `x` over `[lo, hi]`, at each non-empty bin's centre.
+fn binned_means(points: impl Iterator<Item = (f32, f32)>, lo: f32, hi: f32, bins: usize) -> Vec<(f32, f32)> {
+    let width = ((hi - lo) / bins as f32).max(f32::EPSILON);
+    let mut sums = vec![(0.0f32, 0usize); bins];
+    for (x, y) in points {
+        let b = (((x - lo) / width) as usize).min(bins - 1);
+        sums[b].0 += y;
+        sums[b].1 += 1;
+    }
+    sums.iter()
+        .enumerate()
+        .filter(|(_, (_, n))| *n > 0)
+        .map(|(b, (sum, n))| (lo + (b as f32 + 0.5) * width, sum / *n as f32))
+        .collect()
+}
+
 /// A file-name-safe form of a controller spec.
 pub fn slug(s: &str) -> String {
     let spec = s.strip_prefix("rl:").unwrap_or(s);
@@ -91,14 +192,21 @@ pub fn slug(s: &str) -> String {
 }
 
 /// Writes, for every scenario of `result`, `distance_vs_time_<scenario>.svg` and
-/// `trajectories_<scenario>_<controller>.svg`, each also as PNG, into `dir`; `setups` are the suite's scenarios in
-/// order. Returns the files written.
+/// `trajectories_<scenario>_<controller>.svg`, and for BARN worlds with difficulty metrics
+/// `barn_score_vs_difficulty.svg`, each also as PNG, into `dir`; `setups` are the suite's
+/// scenarios in order. Returns the files written.
 pub fn write_suite_figures(
     result: &SuiteResult,
     setups: &[std::sync::Arc<EnvSetup>],
     dir: &Path,
 ) -> Result<Vec<PathBuf>, String> {
     let mut files = Vec::new();
+    for ext in ["svg", "png"] {
+        let f = dir.join(format!("barn_score_vs_difficulty.{ext}"));
+        if barn_score_vs_difficulty(&f, result)?.is_some() {
+            files.push(f);
+        }
+    }
     for setup in setups {
         let name = &setup.scenario.spec().name;
         let cells: Vec<_> = result.cells.iter().filter(|c| &c.scenario == name).collect();

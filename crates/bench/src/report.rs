@@ -52,7 +52,7 @@ const STYLE: &str = "body{font-family:sans-serif;margin:2em;color:#222}\
 table{border-collapse:collapse;margin:1em 0}th,td{border:1px solid #bbb;padding:3px 8px;text-align:right}\
 th{background:#eee}td:first-child,td:nth-child(2){text-align:left}\
 .row{display:flex;flex-wrap:wrap;gap:12px;align-items:flex-start}.fig{flex:0 0 auto}\
-.fig svg{width:420px;height:auto}.fig h4{margin:4px 0;font-weight:normal}.missing{color:#a00}";
+.fig svg{width:420px;height:auto}.fig h4{margin:4px 0;font-weight:normal}.missing{color:#a00}.wide svg{width:100%;max-width:1500px;height:auto}";
 
 /// Writes `dir/report.html` for `suites`, whose figures [`crate::plots::write_suite_figures`]
 /// already wrote into `dir`; returns its path.
@@ -89,14 +89,26 @@ pub fn write_html(dir: &Path, suites: &[SuiteResult]) -> Result<std::path::PathB
         }
         h += "</table>\n<h3>Per scene</h3>\n<table><tr><th>scenario</th><th>controller</th><th>success</th>\
               <th>collision</th><th>timeout</th><th>SPL</th><th>task time (s)</th><th>min lidar range (m)</th>\
-              <th>avg speed (m/s)</th><th>ang. acc. (rad/s²)</th><th>BARN score</th></tr>\n";
+              <th>avg speed (m/s)</th><th>ang. acc. (rad/s²)</th><th>BARN score (k=2)</th><th>(k=4)</th></tr>\n";
         for c in &r.cells {
             let s = &c.summary;
-            let barn = c.barn_score.map_or("–".into(), |b| format!("{b:.3}"));
-            let rest = [num(s.mean_speed, 2), num(s.mean_angular_acceleration, 2), barn];
+            let score = |b: Option<f32>| b.map_or("–".into(), |b| format!("{b:.3}"));
+            let rest = [
+                num(s.mean_speed, 2),
+                num(s.mean_angular_acceleration, 2),
+                score(c.barn_score),
+                score(c.barn_score_k4),
+            ];
             h += &row([esc(&c.scenario), esc(&c.controller)].into_iter().chain(figures(s)).chain(rest));
         }
         h += "</table>\n";
+        if dir.join("barn_score_vs_difficulty.svg").exists() {
+            let _ = writeln!(
+                h,
+                "<h3>BARN score against world difficulty</h3>\n<div class=\"wide\">{}</div>",
+                inline_svg(&dir.join("barn_score_vs_difficulty.svg"))
+            );
+        }
         for scene in first_seen(r.cells.iter().map(|c| c.scenario.as_str())) {
             let _ = writeln!(h, "<h3>{}</h3>\n<div class=\"row\">", esc(scene));
             let _ = writeln!(

@@ -513,16 +513,28 @@ impl SuiteResult {
         let controllers = first_seen(barn_cells.iter().map(|c| c.controller.as_str()));
         let mut s = String::from(
             "\nBARN Challenge score over the worlds (k = 2: scored since 2024, best 0.5; k = 4: until 2023, best 0.25):\n\n\
-             | controller | worlds | success | score (k=2) | score (k=4) |\n|---|---|---|---|---|\n",
+             | controller | worlds | success | collision | timeout | mean time of successes (s) | score (k=2) | score (k=4) |\n\
+             |---|---|---|---|---|---|---|---|\n",
         );
         for name in &controllers {
             let mine: Vec<&&CellResult> = barn_cells.iter().filter(|c| c.controller == *name).collect();
             let n = mine.len().max(1) as f32;
             let mean = |f: &dyn Fn(&CellResult) -> f32| mine.iter().map(|c| f(c)).sum::<f32>() / n;
+            let wins: Vec<f32> = mine
+                .iter()
+                .flat_map(|c| c.episodes.iter().filter(|e| e.outcome == rlnav_sim::Outcome::Success).map(|e| e.time))
+                .collect();
             s += &format!(
-                "| {name} | {} | {:.1}% | {:.3} | {:.3} |\n",
+                "| {name} | {} | {:.1}% | {:.1}% | {:.1}% | {} | {:.3} | {:.3} |\n",
                 mine.len(),
                 100.0 * mean(&|c| c.summary.success_rate),
+                100.0 * mean(&|c| c.summary.collision_rate),
+                100.0 * mean(&|c| c.summary.timeout_rate),
+                if wins.is_empty() {
+                    "–".into()
+                } else {
+                    format!("{:.1}", wins.iter().sum::<f32>() / wins.len() as f32)
+                },
                 mean(&|c| c.barn_score.unwrap_or(0.0)),
                 mean(&|c| c.barn_score_k4.unwrap_or(0.0)),
             );

@@ -405,6 +405,11 @@ fn barn_worlds_run_from_any_folder() {
     assert_eq!(md.lines().filter(|l| l.starts_with("| barn-world_")).count(), 50, "{md}");
     assert!(md.contains("BARN Challenge score over the worlds"), "{md}");
     assert!(md.contains("| world | closest wall | visibility |"), "{md}");
+    // The score-against-difficulty figure is written and inlined in the page.
+    let svg = std::fs::read_to_string(dir.join("report/barn_score_vs_difficulty.svg")).unwrap();
+    assert!(svg.contains("characteristic dimension") && svg.contains("greedy"), "{svg}");
+    let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
+    assert!(html.contains("BARN score against world difficulty") && html.contains("(k=4)"));
     let out = run(&["list"]);
     assert!(String::from_utf8_lossy(&out.stdout).contains("barn#world_N"));
 }
