@@ -2,6 +2,7 @@
 //! the robot, and where episodes start and end. Shipped scenarios live in `scenarios/` and are
 //! embedded in the binary.
 
+use crate::barn::generate::CellularSpec;
 use crate::config::{ConfigError, Invalid, Validate, check_count, check_interval, check_range, preset_or_file};
 use crate::geometry::{Obstacle, ObstacleSpec, Pose2, Rect, Vec2};
 use crate::map::{MAP_PRESETS, MapRef, OccupancyGrid};
@@ -27,6 +28,7 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("random-rooms-dynamic", include_str!("../../../scenarios/random-rooms-dynamic.yaml")),
     ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
     ("warehouse", include_str!("../../../scenarios/warehouse.yaml")),
+    ("barn-generated", include_str!("../../../scenarios/barn-generated.yaml")),
     ("turtlebot3-world", include_str!("../../../scenarios/turtlebot3-world.yaml")),
     ("people-room", include_str!("../../../scenarios/people-room.yaml")),
     ("paper-static-1", include_str!("../../../scenarios/paper-static-1.yaml")),
@@ -167,6 +169,10 @@ pub struct GeneratorSpec {
     pub concave: Option<ConcaveGenSpec>,
     /// Corridors from the start to the goal, straight, L- or Z-shaped (none by default).
     pub corridors: Option<CorridorGenSpec>,
+    /// A BARN-like field drawn by the BARN dataset's cellular automaton, with the challenge's
+    /// containment walls, in the BARN worlds' coordinates (start (-2.25, 3), goal
+    /// (-2.25, 13)); see [`crate::barn::generate`]. None by default.
+    pub barn: Option<CellularSpec>,
 }
 
 /// A corridor that leads from the start to the goal: two walls a corridor's width apart along
@@ -308,6 +314,7 @@ impl Default for GeneratorSpec {
             partitions: None,
             concave: None,
             corridors: None,
+            barn: None,
         }
     }
 }
@@ -344,6 +351,9 @@ impl GeneratorSpec {
         }
         if let Some(c) = &mut g.concave {
             c.count = scale_count(c.count, d);
+        }
+        if let Some(b) = &mut g.barn {
+            *b = b.at_difficulty(d);
         }
         if let Some(c) = &mut g.corridors {
             // Narrow corridors are the hard ones.
@@ -490,6 +500,9 @@ impl Validate for ScenarioSpec {
                 check_interval("procedural.concave.size", c.size, 0.1, 100.0)?;
                 check_interval("procedural.concave.thickness", c.thickness, 0.01, 10.0)?;
             }
+            if let Some(b) = &g.barn {
+                b.validate().map_err(|e| e.under("procedural.barn"))?;
+            }
             if let Some(c) = &g.corridors {
                 check_range("procedural.corridors.probability", c.probability, 0.0, 1.0)?;
                 check_interval("procedural.corridors.width", c.width, 0.3, 100.0)?;
@@ -544,12 +557,16 @@ impl Validate for ScenarioSpec {
 impl ScenarioSpec {
     /// The scenario at difficulty `d` in [0, 1] ([`GeneratorSpec::at_difficulty`]; start–goal
     /// distances are drawn up to `lo + (0.3 + 0.7·d)·(hi − lo)`, a range wide enough to draw
-    /// from even at 0). A scenario without a generator is the same at every difficulty.
+    /// from even at 0, except in a BARN field, whose start and goal are fixed). A scenario
+    /// without a generator is the same at every difficulty.
     pub fn at_difficulty(&self, d: f32) -> Self {
         let mut s = self.clone();
         if let Some(g) = &self.procedural {
             s.procedural = Some(g.at_difficulty(d));
-            s.start_goal_distance = scale_up(s.start_goal_distance, 0.3 + 0.7 * d.clamp(0.0, 1.0));
+            // A BARN field keeps the challenge's fixed start and goal.
+            if g.barn.is_none() {
+                s.start_goal_distance = scale_up(s.start_goal_distance, 0.3 + 0.7 * d.clamp(0.0, 1.0));
+            }
         }
         s
     }
@@ -1169,6 +1186,20 @@ impl Scenario {
         let Some(g) = &self.spec.procedural else {
             return self.build_world(obstacles);
         };
+        if let Some(b) = &g.barn {
+            // A spec that validates draws a world within a few hundred tries at worst; were
+            // it to fail, the episode runs in the containment walls alone.
+            use crate::barn::{BarnGrid, GRID_SIZE, import};
+            let cylinders = match crate::barn::generate::draw_world(rng, b) {
+                Some(w) => w.cylinders,
+                None => import::cylinders_of(&BarnGrid::new(GRID_SIZE, GRID_SIZE)),
+            };
+            for c in cylinders {
+                if let Ok(o) = Obstacle::new(ObstacleSpec::Circle { center: c, radius: import::CYLINDER_RADIUS }) {
+                    obstacles.push(o);
+                }
+            }
+        }
         let mut placed: Vec<(Vec2, f32)> = Vec::new();
         // Keeps generated obstacles off the start and the goal.
         let keep_out = |c: Vec2, r: f32| {

@@ -66,12 +66,19 @@ impl BarnGrid {
     /// The cells a robot's centre cannot take: every cell within `radius` cells (a square) of
     /// an occupied one.
     pub fn c_space(&self, radius: usize) -> Self {
-        let mut out = Self::new(self.rows, self.cols);
+        // A square's maximum is a row pass then a column pass (the generator calls this for
+        // every grid it draws).
         let k = radius as i64;
+        let mut rows_done = Self::new(self.rows, self.cols);
         for r in 0..self.rows as i64 {
             for c in 0..self.cols as i64 {
-                let blocked = (r - k..=r + k).any(|i| (c - k..=c + k).any(|j| self.occupied(i, j)));
-                out.set(r as usize, c as usize, blocked);
+                rows_done.set(r as usize, c as usize, (c - k..=c + k).any(|j| self.occupied(r, j)));
+            }
+        }
+        let mut out = Self::new(self.rows, self.cols);
+        for r in 0..self.rows as i64 {
+            for c in 0..self.cols as i64 {
+                out.set(r as usize, c as usize, (r - k..=r + k).any(|i| rows_done.occupied(i, c)));
             }
         }
         out

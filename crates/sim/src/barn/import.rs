@@ -20,7 +20,7 @@ const START: [f32; 3] = [-2.25, 3.0, 1.57];
 /// The challenge's goal (start + `GOAL_POSITION`).
 const GOAL: [f32; 2] = [-2.25, 13.0];
 /// Cylinders of the BARN worlds (m).
-const CYLINDER_RADIUS: f32 = 0.075;
+pub const CYLINDER_RADIUS: f32 = 0.075;
 
 /// Which of a BARN folder's worlds to import.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -22,9 +22,10 @@ pub const SHIPPED_NAME: &str = "barn";
 pub const SHIPPED_BARN: &str = include_str!("../../../../assets/barn/barn_worlds.json");
 
 pub mod difficulty;
+pub mod generate;
 pub mod import;
 
-pub use difficulty::{BarnGrid, Difficulty};
+pub use difficulty::{BarnGrid, Difficulty, GRID_SIZE};
 pub use import::{Split, import_dir};
 
 /// How the challenge scores a run (written into imported files' `about`).
