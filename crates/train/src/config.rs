@@ -14,6 +14,7 @@ pub const TRAIN_PRESETS: &[(&str, &str)] = &[
     ("static-mlp", include_str!("../../../configs/static-mlp.yaml")),
     ("dynamic-lstm", include_str!("../../../configs/dynamic-lstm.yaml")),
     ("smoke", include_str!("../../../configs/smoke.yaml")),
+    ("barn-jackal", include_str!("../../../configs/barn-jackal.yaml")),
 ];
 
 /// The built-in default run (`rlnav train` with no `--config`).
