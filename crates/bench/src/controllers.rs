@@ -4,7 +4,7 @@
 
 use rlnav_planners::Dwa;
 use rlnav_policy::PolicyRunner;
-use rlnav_sim::task::EnvSetup;
+use rlnav_sim::task::{ActionConfig, EnvSetup, TaskConfig};
 use rlnav_sim::{Controller, GreedyGoal, StraightAhead};
 use std::path::Path;
 
@@ -36,6 +36,27 @@ pub fn by_name(name: &str) -> Result<Box<dyn Controller>, ControllerError> {
             None => Err(ControllerError::Unknown(other.to_string())),
         },
     }
+}
+
+/// The task the controller `name` runs under: a policy's own action ranges, control period and
+/// plan from its contract (as it was trained: the simulator clamps every command to the task's
+/// ranges, so a 2 m/s policy under the default 0.5 m/s task would crawl), the rest `base`'s;
+/// `base` itself for the other controllers. A policy trained on plans gets the global plan of
+/// a world known in advance, as a Nav2 controller gets the planner's.
+pub fn task_for(name: &str, base: &TaskConfig) -> Result<TaskConfig, ControllerError> {
+    let Some((model, contract)) = rl_spec(name) else {
+        return Ok(base.clone());
+    };
+    let runner = PolicyRunner::load(Path::new(&model), contract.as_deref().map(Path::new))?;
+    let c = runner.contract();
+    let substeps = (c.control_period / base.physics_dt).round().max(1.0);
+    Ok(TaskConfig {
+        control_period: c.control_period,
+        physics_dt: c.control_period / substeps,
+        action: ActionConfig { linear: c.action.linear, angular: c.action.angular },
+        plan: c.plan.clone(),
+        ..base.clone()
+    })
 }
 
 /// `rl:MODEL.onnx[:CONTRACT.yaml]` as (model, contract).

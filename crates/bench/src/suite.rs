@@ -2,7 +2,7 @@
 //! several controllers through all of them on the same seeded episodes.
 
 use crate::batch::{BatchPolicy, evaluate_batch};
-use crate::controllers::{check, for_setup};
+use crate::controllers::{check, for_setup, task_for};
 use crate::evaluate::{EvalRun, EvalSummary, evaluate_controller};
 use rlnav_sim::barn::{Difficulty, barn_score_k};
 use rlnav_sim::config::{ConfigError, Invalid, Validate, preset_or_file};
@@ -307,11 +307,22 @@ pub fn run_suite_with(
     if controllers.is_empty() && batch.is_none() {
         return Err(BenchError::NoControllers);
     }
-    let setups = suite_setups_scored(suite, robot, &TaskConfig::default())?;
     let bad = |name: &str, message: &str| BenchError::Controller { name: name.into(), message: message.into() };
-    let mut warnings = Vec::new();
+    let setups = suite_setups_scored(suite, robot, &TaskConfig::default())?;
+    // Each controller's scenes under its own task (a policy's action ranges, control period
+    // and plan); the same scenes and seeds for all.
+    let mut own_setups: Vec<Vec<Arc<EnvSetup>>> = Vec::with_capacity(controllers.len());
     for c in controllers {
-        for (setup, _) in &setups {
+        let task = task_for(c, &TaskConfig::default()).map_err(|e| bad(c, &e.to_string()))?;
+        own_setups.push(if task == TaskConfig::default() {
+            setups.iter().map(|(s, _)| s.clone()).collect()
+        } else {
+            suite_setups_scored(suite, robot, &task)?.into_iter().map(|(s, _)| s).collect()
+        });
+    }
+    let mut warnings = Vec::new();
+    for (c, mine) in controllers.iter().zip(&own_setups) {
+        for setup in mine {
             for w in check(c, setup)
                 .map_err(|e| bad(c, &format!("{} on {}: {e}", setup.robot.name, setup.scenario.spec().name)))?
             {
@@ -345,7 +356,7 @@ pub fn run_suite_with(
         progress(done, total);
     }
     let mut cells = Vec::new();
-    for ((setup, optimal), own) in setups.iter().zip(&mut batch_runs) {
+    for (k, ((setup, optimal), own)) in setups.iter().zip(&mut batch_runs).enumerate() {
         let cell = |controller: &str, (summary, eps, traces): EvalRun| CellResult {
             scenario: setup.scenario.spec().name.clone(),
             controller: controller.to_string(),
@@ -359,9 +370,10 @@ pub fn run_suite_with(
         if let (Some(run), Some(b)) = (own.take(), &batch) {
             cells.push(cell(b.name, run));
         }
-        for c in controllers {
+        for (c, mine) in controllers.iter().zip(&own_setups) {
             let name = &setup.scenario.spec().name;
             let dir = record.map(|d| d.join(crate::plots::slug(name)).join(crate::plots::slug(c)));
+            let setup = &mine[k];
             let run = evaluate_controller(
                 setup.clone(),
                 || for_setup(c, setup),

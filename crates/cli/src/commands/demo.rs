@@ -22,7 +22,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let setup = a.env.setup()?;
+    let setup = a.env.setup_for(&a.controller)?;
     let mut c = rlnav_bench::controllers::for_setup(&a.controller, &setup)?;
     println!(
         "scenario {} | robot {} | controller {} | {} episodes, seed {}",

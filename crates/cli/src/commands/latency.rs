@@ -17,7 +17,7 @@ pub struct Args {
 
 pub fn run(a: Args) -> Result<()> {
     anyhow::ensure!(a.cycles > 0, "--cycles must be at least 1");
-    let setup = a.env.setup()?;
+    let setup = a.env.setup_for(&a.controller)?;
     let mut c = rlnav_bench::controllers::for_setup(&a.controller, &setup)?;
     let r = rlnav_bench::latency::measure_latency(c.as_mut(), setup, a.cycles, a.cycles / 10, 0)?;
     println!(

@@ -39,6 +39,20 @@ impl EnvArgs {
     pub fn setup(&self) -> Result<Arc<EnvSetup>> {
         Ok(Arc::new(EnvSetup::load(&self.scenario, self.robot.as_deref(), self.task.as_deref())?))
     }
+
+    /// [`Self::setup`] for `controller`: a policy runs under its own action ranges, control
+    /// period and plan (`rlnav_bench::controllers::task_for`) unless `--task` is given.
+    pub fn setup_for(&self, controller: &str) -> Result<Arc<EnvSetup>> {
+        let setup = self.setup()?;
+        if self.task.is_some() {
+            return Ok(setup);
+        }
+        let task = rlnav_bench::controllers::task_for(controller, &setup.task)?;
+        if task == setup.task {
+            return Ok(setup);
+        }
+        Ok(Arc::new(EnvSetup::new(setup.scenario.spec().clone(), setup.robot.clone(), task)?))
+    }
 }
 
 /// Writes `value` as pretty JSON to `path` (creating its folder) and says so.

@@ -37,7 +37,7 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let is_gif = a.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("gif"));
     anyhow::ensure!(a.episode || !is_gif, "{}: an animation needs --episode", a.out.display());
-    let setup = a.env.setup()?;
+    let setup = a.env.setup_for(&a.controller)?;
     let mut env = NavEnv::new(setup.clone(), a.seed)?;
     let (frames, summary) = if a.episode {
         let mut c = rlnav_bench::controllers::for_setup(&a.controller, &setup)?;
