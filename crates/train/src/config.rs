@@ -232,7 +232,8 @@ pub struct EvalConfig {
     pub stop_at_success: Option<f32>,
     /// Held-out scenarios (hand-built rooms no training scenario samples, such as the
     /// `heldout-static` suite's) evaluated beside `scenario` at every evaluation; when given,
-    /// the best checkpoint is the one with the highest success over them.
+    /// the best checkpoint is the one with the highest success over them. `SET#*` stands for
+    /// every world of a BARN set (`barn#*`: the 250 shipped worlds).
     pub heldout: Vec<String>,
     /// Episodes per held-out scenario and evaluation (default 20).
     pub heldout_episodes: usize,

@@ -489,8 +489,12 @@ pub fn train(
         }));
     }
     let eval = env_setup(cfg, &cfg.eval.scenario, cfg.task.clone(), None)?;
-    let heldout =
-        cfg.eval.heldout.iter().map(|s| env_setup(cfg, s, cfg.task.clone(), None)).collect::<Result<Vec<_>, _>>()?;
+    let mut heldout = Vec::new();
+    for name in &cfg.eval.heldout {
+        for s in rlnav_sim::barn::expand_world_references(name)? {
+            heldout.push(env_setup(cfg, &s, cfg.task.clone(), None)?);
+        }
+    }
     // Every held-out scenario, one episode per environment (no bias to short episodes), pooled.
     let eval_heldout = |ppo: &Ppo, seed: u64| -> Result<Option<EvalSummary>, TrainError> {
         if heldout.is_empty() {

@@ -220,6 +220,17 @@ pub fn is_world_reference(name: &str) -> bool {
     name.contains(".json") || name.split_once('#').is_some_and(|(set, _)| set == SHIPPED_NAME)
 }
 
+/// The scenario names `name` stands for: every world of a BARN set, in index order, for
+/// `SET#*` (`barn#*`, `FILE.json#*`), otherwise `name` itself.
+pub fn expand_world_references(name: &str) -> Result<Vec<String>, ConfigError> {
+    match name.strip_suffix("#*") {
+        Some(set) if is_world_reference(name) => {
+            Ok(BarnSet::load_named(set)?.worlds.iter().map(|w| format!("{set}#{}", w.name)).collect())
+        }
+        _ => Ok(vec![name.to_string()]),
+    }
+}
+
 /// Loads `barn#world_N` (the embedded worlds) or `FILE.json#world_N` as a scenario.
 pub fn load_world_spec(reference: &str) -> Result<ScenarioSpec, ConfigError> {
     let (path, world) = reference.split_once('#').unwrap_or((reference, ""));
@@ -249,5 +260,17 @@ mod tests {
         assert_eq!(barn_score(true, 100.0, 5.0), 0.125, "slower than 8x optimal counts as 8x");
         assert_eq!(barn_score_k(true, 5.0, 5.0, 4.0), 0.25, "k = 4: the older ceiling");
         assert_eq!(barn_score_k(true, 30.0, 5.0, 4.0), 5.0 / 30.0);
+    }
+
+    #[test]
+    fn a_star_stands_for_every_world_of_a_set() {
+        let all = expand_world_references("barn#*").unwrap();
+        assert_eq!(all.len(), 250);
+        assert_eq!(all[0], "barn#world_1", "world 0 is a test world, not shipped");
+        assert!(all.iter().all(|n| load_world_spec(n).is_ok()));
+        assert_eq!(expand_world_references("barn#world_3").unwrap(), ["barn#world_3"]);
+        assert_eq!(expand_world_references("random-static").unwrap(), ["random-static"]);
+        let err = expand_world_references("/nonexistent/worlds.json#*").unwrap_err().to_string();
+        assert!(err.contains("/nonexistent/worlds.json"), "{err}");
     }
 }
