@@ -206,7 +206,16 @@ fn env_setup(
     task: TaskConfig,
     levels: Option<usize>,
 ) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
-    let spec = ScenarioSpec::load(scenario)?;
+    setups_for(cfg, ScenarioSpec::load(scenario)?, task, levels)
+}
+
+/// [`env_setup`] for a scenario already loaded.
+fn setups_for(
+    cfg: &RunConfig,
+    spec: ScenarioSpec,
+    task: TaskConfig,
+    levels: Option<usize>,
+) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
     let names = if cfg.robots.is_empty() { std::slice::from_ref(&cfg.robot) } else { cfg.robots.as_slice() };
     names
         .iter()
@@ -491,8 +500,8 @@ pub fn train(
     let eval = env_setup(cfg, &cfg.eval.scenario, cfg.task.clone(), None)?;
     let mut heldout = Vec::new();
     for name in &cfg.eval.heldout {
-        for s in rlnav_sim::barn::expand_world_references(name)? {
-            heldout.push(env_setup(cfg, &s, cfg.task.clone(), None)?);
+        for spec in rlnav_sim::barn::load_scenarios(name)? {
+            heldout.push(setups_for(cfg, spec, cfg.task.clone(), None)?);
         }
     }
     // Every held-out scenario, one episode per environment (no bias to short episodes), pooled.

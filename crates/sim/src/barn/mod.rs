@@ -220,14 +220,15 @@ pub fn is_world_reference(name: &str) -> bool {
     name.contains(".json") || name.split_once('#').is_some_and(|(set, _)| set == SHIPPED_NAME)
 }
 
-/// The scenario names `name` stands for: every world of a BARN set, in index order, for
-/// `SET#*` (`barn#*`, `FILE.json#*`), otherwise `name` itself.
-pub fn expand_world_references(name: &str) -> Result<Vec<String>, ConfigError> {
+/// The scenarios `name` stands for: every world of a BARN set, in index order, for `SET#*`
+/// (`barn#*`, `FILE.json#*`; the set is read once), otherwise the one [`ScenarioSpec::load`]
+/// gives.
+pub fn load_scenarios(name: &str) -> Result<Vec<ScenarioSpec>, ConfigError> {
     match name.strip_suffix("#*") {
         Some(set) if is_world_reference(name) => {
-            Ok(BarnSet::load_named(set)?.worlds.iter().map(|w| format!("{set}#{}", w.name)).collect())
+            Ok(BarnSet::load_named(set)?.worlds.into_iter().map(|w| w.spec).collect())
         }
-        _ => Ok(vec![name.to_string()]),
+        _ => Ok(vec![ScenarioSpec::load(name)?]),
     }
 }
 
@@ -264,13 +265,13 @@ mod tests {
 
     #[test]
     fn a_star_stands_for_every_world_of_a_set() {
-        let all = expand_world_references("barn#*").unwrap();
+        let all = load_scenarios("barn#*").unwrap();
         assert_eq!(all.len(), 250);
-        assert_eq!(all[0], "barn#world_1", "world 0 is a test world, not shipped");
-        assert!(all.iter().all(|n| load_world_spec(n).is_ok()));
-        assert_eq!(expand_world_references("barn#world_3").unwrap(), ["barn#world_3"]);
-        assert_eq!(expand_world_references("random-static").unwrap(), ["random-static"]);
-        let err = expand_world_references("/nonexistent/worlds.json#*").unwrap_err().to_string();
+        assert_eq!(all[0].name, load_world_spec("barn#world_1").unwrap().name, "world 0 is a test world, not shipped");
+        assert_eq!(all[249].obstacles, load_world_spec("barn#world_299").unwrap().obstacles);
+        assert_eq!(load_scenarios("barn#world_3").unwrap()[0].name, load_world_spec("barn#world_3").unwrap().name);
+        assert_eq!(load_scenarios("random-static").unwrap()[0].name, "random-static");
+        let err = load_scenarios("/nonexistent/worlds.json#*").unwrap_err().to_string();
         assert!(err.contains("/nonexistent/worlds.json"), "{err}");
     }
 }
