@@ -21,6 +21,53 @@ use rlnav_policy::{ActivationKind, ActorCritic};
 /// Rows per parallel chunk.
 const CHUNK: usize = 256;
 
+/// ELU, `x` above zero and `e^x − 1` below, branch-free so that a loop over a layer
+/// vectorises.
+///
+/// Why not `f32::exp_m1`: it is a scalar libm call, and with it the activation took 39% of a
+/// training run (perf, default config). Here `e^x − 1 = 2^n·(p(r) + 1) − 1` with `x = n·ln 2 + r`,
+/// `|r| ≤ ln 2 / 2`, and `p` the degree-7 Taylor polynomial of `e^r − 1` (truncation under
+/// 3e-9); the result is within 2e-7 of `exp_m1` on `[-87, 0]` (tested) and exactly `-1` below.
+#[inline(always)]
+fn elu(x: f32) -> f32 {
+    const LN2_HI: f32 = 0.693_145_75;
+    const LN2_LO: f32 = 1.428_606_8e-6;
+    // Adding 1.5·2^23 rounds to an integer held in the low mantissa bits.
+    const ROUND: f32 = 12_582_912.0;
+    let z = x.clamp(-87.0, 0.0);
+    let t = z * std::f32::consts::LOG2_E + ROUND;
+    let n = t.to_bits() as i32 - ROUND.to_bits() as i32;
+    let nf = t - ROUND;
+    let r = (z - nf * LN2_HI) - nf * LN2_LO;
+    let mut p = 1.0 / 5040.0;
+    p = p * r + 1.0 / 720.0;
+    p = p * r + 1.0 / 120.0;
+    p = p * r + 1.0 / 24.0;
+    p = p * r + 1.0 / 6.0;
+    p = p * r + 0.5;
+    p = p * r + 1.0;
+    p *= r;
+    let scale = f32::from_bits(((n + 127) << 23) as u32);
+    let neg = scale * p + (scale - 1.0);
+    if x > 0.0 { x } else { neg }
+}
+
+/// [`elu`] over a slice, on AVX2's 8 lanes where the CPU has them (SSE2's 4 otherwise). The
+/// same operations in the same order either way (no FMA), so the results are bit-identical.
+fn elu_slice(y: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[target_feature(enable = "avx2")]
+        fn wide(y: &mut [f32]) {
+            y.iter_mut().for_each(|v| *v = elu(*v));
+        }
+        // SAFETY: the CPU has AVX2 (checked just above).
+        unsafe { wide(y) };
+        return;
+    }
+    y.iter_mut().for_each(|v| *v = elu(*v));
+}
+
 /// A dense layer: offsets of its weight (`[in][out]`, burn's layout) and bias in the flat
 /// parameter buffer.
 #[derive(Clone, Copy, Debug)]
@@ -296,11 +343,7 @@ impl FastMlp {
 
     fn activate(&self, y: &mut [f32]) {
         match self.activation {
-            ActivationKind::Elu => y.iter_mut().for_each(|v| {
-                if *v <= 0.0 {
-                    *v = v.exp_m1()
-                }
-            }),
+            ActivationKind::Elu => elu_slice(y),
             ActivationKind::Relu => y.iter_mut().for_each(|v| *v = v.max(0.0)),
             ActivationKind::Tanh => y.iter_mut().for_each(|v| *v = v.tanh()),
         }
@@ -309,16 +352,11 @@ impl FastMlp {
     /// `dh · f'(z)` in place, from the activation's output `h`.
     fn activate_backward(&self, h: &[f32], dh: &mut [f32]) {
         match self.activation {
-            ActivationKind::Elu => dh.iter_mut().zip(h).for_each(|(g, &h)| {
-                if h <= 0.0 {
-                    *g *= h + 1.0
-                }
-            }),
-            ActivationKind::Relu => dh.iter_mut().zip(h).for_each(|(g, &h)| {
-                if h <= 0.0 {
-                    *g = 0.0
-                }
-            }),
+            // Written as selects, not branches, so that the loops vectorise.
+            ActivationKind::Elu => {
+                dh.iter_mut().zip(h).for_each(|(g, &h)| *g = if h <= 0.0 { *g * (h + 1.0) } else { *g })
+            }
+            ActivationKind::Relu => dh.iter_mut().zip(h).for_each(|(g, &h)| *g = if h <= 0.0 { 0.0 } else { *g }),
             ActivationKind::Tanh => dh.iter_mut().zip(h).for_each(|(g, &h)| *g *= 1.0 - h * h),
         }
     }
@@ -550,6 +588,29 @@ mod tests {
     use rand_distr::StandardNormal;
     use rand_pcg::Pcg64Mcg;
     use rlnav_policy::NetworkConfig;
+
+    #[test]
+    fn elu_agrees_with_libm() {
+        let mut worst = 0.0f32;
+        let mut x = -90.0f32;
+        while x < 3.0 {
+            let want = if x > 0.0 { x } else { x.exp_m1() };
+            worst = worst.max((elu(x) - want).abs());
+            x += 0.000_37;
+        }
+        assert!(worst < 2e-7, "largest difference from exp_m1: {worst:e}");
+        for x in [0.0f32, -0.0, 1e-30, -1e-30, -1e-7, 5.0, f32::MAX, -f32::MAX] {
+            let want = if x > 0.0 { x } else { x.exp_m1() };
+            assert!((elu(x) - want).abs() <= 2e-7 * want.abs().max(1.0), "elu({x:e}) = {:e}, want {want:e}", elu(x));
+        }
+        assert!(elu(f32::NAN).is_nan());
+        // The vectorised slice (with its scalar tail) gives exactly the scalar function.
+        let xs: Vec<f32> = (0..1003).map(|k| -20.0 + 0.021 * k as f32).collect();
+        let mut ys = xs.clone();
+        elu_slice(&mut ys);
+        assert!(xs.iter().zip(&ys).all(|(x, y)| elu(*x).to_bits() == y.to_bits()));
+        assert_eq!(elu(f32::NEG_INFINITY), -1.0);
+    }
 
     /// Every parameter's gradient in visiting order, flattened like [`FastMlp::params`].
     struct Collect<'a> {
