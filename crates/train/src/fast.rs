@@ -385,8 +385,11 @@ impl FastMlp {
     /// Gaussian means `[rows][act]` and values (network units) for observations `[rows][obs]`.
     pub fn forward(&self, obs: &[f32]) -> (Vec<f32>, Vec<f32>) {
         let rows = obs.len() / self.obs_dim;
+        // A rollout step's batch (128 rows, say) is smaller than a chunk: split it so that every
+        // thread gets a share. Rows are independent, so the split does not change the results.
+        let chunk = rows.div_ceil(self.pool.current_num_threads()).clamp(1, CHUNK);
         let parts: Vec<(Vec<f32>, Vec<f32>)> = self.pool.install(|| {
-            obs.par_chunks(CHUNK * self.obs_dim)
+            obs.par_chunks(chunk * self.obs_dim)
                 .map(|x| {
                     let (mu, v, _, _) = self.forward_rows(x, x.len() / self.obs_dim);
                     (mu, v)
@@ -751,6 +754,11 @@ mod tests {
         let (mu1, v1) = FastMlp::from_model(&model, 1).unwrap().forward(&obs);
         let (mu2, v2) = FastMlp::from_model(&model, 2).unwrap().forward(&obs);
         assert_eq!((&mu1, &v1), (&mu2, &v2), "bit-identical for 1 and 2 threads");
+        // A rollout-sized batch is split by thread count (130 rows: one chunk, or 44 + 44 + 42).
+        let small = &obs[..130 * 9];
+        let one = FastMlp::from_model(&model, 1).unwrap().forward(small);
+        assert_eq!(one, FastMlp::from_model(&model, 3).unwrap().forward(small), "bit-identical for 1 and 3 threads");
+        assert_eq!(one.0[..], mu1[..260]);
         let (mu, v) = model.forward(Tensor::<2>::from_data(TensorData::new(obs, [600, 9]), &device));
         let (mu, v) = (mu.into_data().try_to_vec::<f32>().unwrap(), v.into_data().try_to_vec::<f32>().unwrap());
         for (a, b) in mu1.iter().chain(&v1).zip(mu.iter().chain(&v)) {
