@@ -160,7 +160,20 @@ impl VecEnv {
     /// Steps every environment with its normalised action (`actions.len() == len()`),
     /// resetting those whose episode ended.
     pub fn step(&mut self, actions: &[[f32; 2]]) -> Result<(), SimError> {
+        self.step_some(actions, None)
+    }
+
+    /// As [`Self::step`], but with `active` (one flag per environment) only the flagged
+    /// environments step; the others keep their state and observation and report a zero
+    /// reward and no episode end. Evaluation uses it to stop environments that have run their
+    /// quota of episodes while the slowest finish theirs.
+    pub fn step_some(&mut self, actions: &[[f32; 2]], active: Option<&[bool]>) -> Result<(), SimError> {
         assert_eq!(actions.len(), self.envs.len(), "one action per environment");
+        if let Some(a) = active {
+            assert_eq!(a.len(), self.envs.len(), "one flag per environment");
+        }
+        let all = vec![true; if active.is_some() { 0 } else { self.envs.len() }];
+        let active = active.unwrap_or(&all);
         let d = self.obs_dim;
         let Self { envs, pool, obs, rewards, terminated, truncated, final_obs, finished, .. } = self;
         pool.install(|| {
@@ -172,8 +185,13 @@ impl VecEnv {
                 .zip(terminated.par_chunks_mut(CHUNK))
                 .zip(truncated.par_chunks_mut(CHUNK))
                 .zip(finished.par_chunks_mut(CHUNK))
-                .try_for_each(|(((((((envs, acts), obs), fobs), rew), term), trunc), fin)| {
+                .zip(active.par_chunks(CHUNK))
+                .try_for_each(|((((((((envs, acts), obs), fobs), rew), term), trunc), fin), on)| {
                     for i in 0..envs.len() {
+                        if !on[i] {
+                            (rew[i], term[i], trunc[i], fin[i]) = (0.0, false, false, None);
+                            continue;
+                        }
                         let env = &mut envs[i];
                         let out = env.step(acts[i]);
                         rew[i] = out.reward;

@@ -228,3 +228,31 @@ fn difficulty_levels_scale_the_rooms_and_follow_outcomes() {
     // straight ahead goes up a level).
     assert!(start > 0.0 && after < start, "collisions lower the levels: {start} -> {after}");
 }
+
+#[test]
+fn environments_left_out_of_a_step_stand_still_and_the_rest_are_unaffected() {
+    let setup = Arc::new(EnvSetup::from_scenario_name("random-static").unwrap());
+    let d = setup.obs_dim();
+    let mut all = VecEnv::new(setup.clone(), 6, 3, 2).unwrap();
+    let mut some = VecEnv::new(setup, 6, 3, 2).unwrap();
+    let actions = vec![[0.8f32, 0.3]; 6];
+    // Environment 4 sits out the first 50 steps, then joins in.
+    let active = [true, true, true, true, false, true];
+    let frozen = some.obs[4 * d..5 * d].to_vec();
+    let mut ends = 0;
+    for t in 0..200 {
+        all.step(&actions).unwrap();
+        some.step_some(&actions, Some(if t < 50 { &active } else { &[true; 6] })).unwrap();
+        for e in [0, 1, 2, 3, 5] {
+            assert_eq!(all.obs[e * d..(e + 1) * d], some.obs[e * d..(e + 1) * d], "env {e} at step {t}");
+            assert_eq!((all.rewards[e], all.finished[e].is_some()), (some.rewards[e], some.finished[e].is_some()));
+            ends += all.finished[e].is_some() as usize;
+        }
+        if t < 50 {
+            assert_eq!(some.obs[4 * d..5 * d], frozen[..], "the left-out environment moved at step {t}");
+            assert_eq!((some.rewards[4], some.terminated[4], some.finished[4].is_some()), (0.0, false, false));
+        }
+    }
+    assert!(ends > 0, "episodes ended in 200 steps");
+    assert_ne!(some.obs[4 * d..5 * d], frozen[..], "it moves once it is back in");
+}

@@ -35,7 +35,9 @@ pub fn evaluate(
         for (e, act) in actions.iter_mut().enumerate() {
             *act = [mu[e * a], mu[e * a + 1]];
         }
-        venv.step(&actions)?;
+        // Environments past their quota stand still instead of simulating episodes no one counts.
+        let active: Vec<bool> = done.iter().map(|d| *d < quota).collect();
+        venv.step_some(&actions, Some(&active))?;
         for e in 0..envs {
             if let Some(s) = venv.finished[e] {
                 if done[e] < quota {
