@@ -37,11 +37,10 @@ pub enum LrSchedule {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Learner {
-    /// The hand-written CPU learner for feed-forward networks, burn for LSTMs and for a GPU
-    /// chosen with `RLNAV_DEVICE`.
+    /// The hand-written CPU learner, or burn when a GPU is chosen with `RLNAV_DEVICE`.
     #[default]
     Auto,
-    /// The hand-written CPU learner (`crate::fast`; feed-forward networks only).
+    /// The hand-written CPU learner (`crate::fast`).
     Fast,
     /// burn's autodiff and Adam (any network, any device).
     Burn,
@@ -168,12 +167,12 @@ impl Default for PpoConfig {
 }
 
 impl PpoConfig {
-    /// Whether the hand-written learner trains `network`.
-    pub fn uses_fast_learner(&self, network: &NetworkConfig) -> bool {
+    /// Whether the hand-written learner trains the network.
+    pub fn uses_fast_learner(&self) -> bool {
         match self.learner {
             Learner::Burn => false,
-            Learner::Fast => !network.is_recurrent(),
-            Learner::Auto => !network.is_recurrent() && std::env::var_os("RLNAV_DEVICE").is_none(),
+            Learner::Fast => true,
+            Learner::Auto => std::env::var_os("RLNAV_DEVICE").is_none(),
         }
     }
 }
@@ -386,12 +385,6 @@ impl Validate for RunConfig {
                     format!("a level below `levels` ({}), got {}", a.levels, a.start_max),
                 ));
             }
-        }
-        if self.network.is_recurrent() && t.learner == Learner::Fast {
-            return Err(Invalid::new(
-                "train.learner",
-                "auto or burn for an LSTM network (the hand-written learner is feed-forward only)",
-            ));
         }
         if self.network.is_recurrent() {
             if t.horizon_length % t.seq_len != 0 {

@@ -5,7 +5,7 @@
 //! normalisation, bootstrapped time-outs, and truncated BPTT for LSTM policies.
 
 use crate::config::{LrSchedule, PpoConfig};
-use crate::fast::{AdamState, Batch, FastMlp, LossConfig};
+use crate::fast::{AdamState, Batch, FastNet, LossConfig};
 use crate::gae::compute_gae;
 use crate::rollout::RolloutBuffer;
 use crate::teacher::Teacher;
@@ -71,7 +71,7 @@ pub struct Ppo {
     act_dim: usize,
     /// The hand-written learner (feed-forward networks on the CPU); `None` when burn learns.
     /// While it exists its parameters are the network's, copied into `model` after each update.
-    fast: Option<FastMlp>,
+    fast: Option<FastNet>,
     /// Kickstarting: the teacher and the imitation weight of this epoch.
     teacher: Option<Teacher>,
     teacher_weight: f32,
@@ -205,7 +205,7 @@ impl Ppo {
         let device = plain.clone().autodiff();
         let model = ActorCritic::seeded(network, obs_dim, act_dim, &device, seed);
         let units = model.lstm_units();
-        let fast = if cfg.uses_fast_learner(network) { FastMlp::from_model(&model, cfg.threads) } else { None };
+        let fast = cfg.uses_fast_learner().then(|| FastNet::from_model(&model, cfg.threads));
         Self {
             sim_s: 0.0,
             cfg: cfg.clone(),
@@ -246,7 +246,7 @@ impl Ppo {
     /// `optim` is unused and Adam starts afresh unless [`Self::restore_adam`] follows.
     pub fn restore(&mut self, model: ActorCritic, optim: ModuleOptimizer, lr: f32) {
         if self.fast.is_some() {
-            self.fast = FastMlp::from_model(&model, self.cfg.threads);
+            self.fast = Some(FastNet::from_model(&model, self.cfg.threads));
         }
         self.model = Some(model);
         self.optim = optim;
@@ -318,9 +318,9 @@ impl Ppo {
         state: Option<RecurrentState>,
     ) -> (Vec<f32>, Vec<f32>, Option<RecurrentState>) {
         if let Some(fast) = &self.fast {
-            let (mu, mut v) = fast.forward(&obs);
+            let (mu, mut v, next) = fast.infer(&obs, state);
             self.denorm_values(&mut v);
-            return (mu, v, state);
+            return (mu, v, next);
         }
         let n = obs.len() / self.buffer.obs_dim;
         let x = tensor2(obs, n, self.buffer.obs_dim, &self.plain);
@@ -530,10 +530,23 @@ impl Ppo {
                     adv.iter_mut().for_each(|x| *x = (*x - mean) * inv);
                 }
                 let (lr, max_norm) = (self.lr, self.cfg.grad_norm);
+                // Each sequence's stored state before its first step.
+                let gather = |v: &[f32]| -> Vec<f32> {
+                    chunk.iter().flat_map(|item| v[item * units..(item + 1) * units].iter().copied()).collect()
+                };
+                let (cell, hidden) = if units > 0 {
+                    (gather(&self.buffer.cells), gather(&self.buffer.hiddens))
+                } else {
+                    (Vec::new(), Vec::new())
+                };
                 let (new_mu, new_ls, ratios, losses) = if let Some(fast) = self.fast.as_mut() {
                     let ls = fast.log_std().to_vec();
                     let batch = Batch {
                         obs: &obs,
+                        seq,
+                        starts: if units > 0 { &starts } else { &[] },
+                        cell: &cell,
+                        hidden: &hidden,
                         actions: &act,
                         old_log_probs: &old_logp,
                         advantages: &adv,
@@ -547,14 +560,6 @@ impl Ppo {
                     let dev = self.device.clone();
                     let (mu, v) = if units > 0 {
                         let b = chunk.len();
-                        let cell: Vec<f32> = chunk
-                            .iter()
-                            .flat_map(|item| self.buffer.cells[item * units..(item + 1) * units].to_vec())
-                            .collect();
-                        let hidden: Vec<f32> = chunk
-                            .iter()
-                            .flat_map(|item| self.buffer.hiddens[item * units..(item + 1) * units].to_vec())
-                            .collect();
                         let mut state =
                             Some(LstmState::new(tensor2(cell, b, units, &dev), tensor2(hidden, b, units, &dev)));
                         let (mut mus, mut vs) = (Vec::with_capacity(seq), Vec::with_capacity(seq));
