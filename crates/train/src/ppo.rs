@@ -69,7 +69,7 @@ pub struct Ppo {
     /// Per-environment recurrent state (cell, hidden), `[env][units]`.
     state: Option<RecurrentState>,
     act_dim: usize,
-    /// The hand-written learner (feed-forward networks on the CPU); `None` when burn learns.
+    /// The hand-written CPU learner (MLP and LSTM networks); `None` when burn learns.
     /// While it exists its parameters are the network's, copied into `model` after each update.
     fast: Option<FastNet>,
     /// Kickstarting: the teacher and the imitation weight of this epoch.
