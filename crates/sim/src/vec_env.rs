@@ -39,6 +39,8 @@ pub struct VecEnv {
     pub final_obs: Vec<f32>,
     /// Statistics of the episodes that finished in the last step, per environment.
     pub finished: Vec<Option<EpisodeStats>>,
+    /// One `true` per environment: [`Self::step`]'s flags, kept so that a step allocates nothing.
+    all_active: Vec<bool>,
 }
 
 /// Environments per rayon task: enough work to amortise scheduling.
@@ -87,6 +89,7 @@ impl VecEnv {
             truncated: vec![false; n],
             final_obs: vec![0.0; n * d],
             finished: vec![None; n],
+            all_active: vec![true; n],
         };
         for (env, o) in v.envs.iter_mut().zip(v.obs.chunks_mut(d)) {
             env.write_observation(o);
@@ -172,10 +175,9 @@ impl VecEnv {
         if let Some(a) = active {
             assert_eq!(a.len(), self.envs.len(), "one flag per environment");
         }
-        let all = vec![true; if active.is_some() { 0 } else { self.envs.len() }];
-        let active = active.unwrap_or(&all);
         let d = self.obs_dim;
-        let Self { envs, pool, obs, rewards, terminated, truncated, final_obs, finished, .. } = self;
+        let Self { envs, pool, obs, rewards, terminated, truncated, final_obs, finished, all_active, .. } = self;
+        let active = active.unwrap_or(all_active);
         pool.install(|| {
             envs.par_chunks_mut(CHUNK)
                 .zip(actions.par_chunks(CHUNK))
