@@ -27,6 +27,8 @@ pub fn evaluate(
     let units = ppo.model().lstm_units();
     let mut state = (units > 0).then(|| (vec![0.0f32; envs * units], vec![0.0f32; envs * units]));
     let mut actions = vec![[0.0f32; 2]; envs];
+    // Environments past their quota stand still instead of simulating episodes no one counts.
+    let mut active = vec![true; envs];
     let net = ppo.inference_net();
     while done.iter().any(|d| *d < quota) {
         let (mu, next) = ppo.act_mean(&net, &venv.obs, state.take());
@@ -35,8 +37,7 @@ pub fn evaluate(
         for (e, act) in actions.iter_mut().enumerate() {
             *act = [mu[e * a], mu[e * a + 1]];
         }
-        // Environments past their quota stand still instead of simulating episodes no one counts.
-        let active: Vec<bool> = done.iter().map(|d| *d < quota).collect();
+        active.iter_mut().zip(&done).for_each(|(a, d)| *a = *d < quota);
         venv.step_some(&actions, Some(&active))?;
         for e in 0..envs {
             if let Some(s) = venv.finished[e] {
