@@ -12,7 +12,8 @@
 //! - [`movers`] and [`people`]: moving obstacles, and pedestrians that avoid each other (ORCA);
 //! - [`scenario`]: scenario files, the procedural generator and start/goal sampling;
 //!   [`placement`]: start/goal candidates listed once per fixed map world;
-//! - [`reachability`]: where a robot can drive, and the shortest path past the static world;
+//! - [`reachability`]: where a robot can drive, the shortest path past the static world, and
+//!   the cheapest (the plan a Nav2 planner would give, keeping off obstacles);
 //!   [`plan`]: following a global plan like a Nav2 controller (a subgoal a lookahead ahead);
 //! - [`observation`]: the observation layout ([`ObservationLayout`]) and the builder that the
 //!   simulator and deployed policies share;

@@ -5,10 +5,43 @@
 
 use crate::geometry::Vec2;
 
-/// Extra clearance (m) a global plan keeps from obstacles where the room allows, as Nav2's
-/// planners keep off them through the costmap's inflation cost: a path that hugs a door jamb or
-/// a wall's end at the robot's bare clearance leaves a policy no room to turn there.
-pub const PLAN_BERTH: f32 = 0.15;
+/// How a global plan trades length for room: the price of a metre at a distance from the
+/// nearest obstacle, Nav2's inflation cost as the planners read it. Within `band` of the
+/// robot's clearance a metre costs `1 + weight * exp(-scaling * left)`, `left` being the
+/// distance beyond the clearance; further out it costs 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlanCost {
+    /// The robot's clearance (m): the closest a path may come to an obstacle.
+    pub clearance: f32,
+    /// Extra price of a metre at the clearance (Nav2's lethal-adjacent cost, scaled).
+    pub weight: f32,
+    /// Decay of the extra price per metre beyond the clearance (Nav2's `cost_scaling_factor`).
+    pub scaling: f32,
+    /// How far beyond the clearance obstacles cost anything (Nav2's inflation radius less the
+    /// inscribed radius).
+    pub band: f32,
+}
+
+impl PlanCost {
+    /// The costs the simulator's plans use, for a robot of `clearance`: the DWA baseline's A*
+    /// (`cost_weight` 3, `cost_scaling_factor` 3, `docs/planners.md`), with the inflation
+    /// reaching 0.5 m past the clearance so that a plan keeps to the middle of corridors up
+    /// to 1.5 m wide for the Jetbot's 0.25 m.
+    pub fn nav2_like(clearance: f32) -> Self {
+        Self { clearance, weight: 3.0, scaling: 3.0, band: 0.5 }
+    }
+
+    /// Price of a metre through a point `distance` from the nearest obstacle.
+    pub fn per_metre(&self, distance: f32) -> f32 {
+        let left = (distance - self.clearance).max(0.0);
+        if left >= self.band { 1.0 } else { 1.0 + self.weight * (-self.scaling * left).exp() }
+    }
+
+    /// The distance beyond which a metre costs 1 (how far a clearance field must measure).
+    pub fn reach(&self) -> f32 {
+        self.clearance + self.band
+    }
+}
 
 /// Where [`follow`] put the target: the point and the path length still to go from it.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -117,6 +117,13 @@ impl ReachabilityGrid {
     /// cell by cell (Amanatides–Woo); where it passes exactly through a corner, both cells
     /// beside the corner must be free too.
     fn sight(&self, p: Vec2, q: Vec2) -> bool {
+        self.walk(p, q, |_, _| {})
+    }
+
+    /// Walks the cells the segment `p`–`q` touches (as [`Self::sight`] describes), calling
+    /// `visit(cell, fraction)` with the fraction of the segment inside each; false (and the
+    /// walk stops) at the first cell that is blocked.
+    fn walk(&self, p: Vec2, q: Vec2, mut visit: impl FnMut(usize, f32)) -> bool {
         let (p, q) = ((p - self.origin) / self.resolution, (q - self.origin) / self.resolution);
         let (mut x, mut y) = (p.x.floor() as i64, p.y.floor() as i64);
         let (qx, qy) = (q.x.floor() as i64, q.y.floor() as i64);
@@ -134,11 +141,16 @@ impl ReachabilityGrid {
         if d.y == 0.0 {
             ty = f32::INFINITY;
         }
+        let cell = |x: i64, y: i64| y as usize * self.width + x as usize;
+        let mut entered = 0.0f32;
         // Rounding can make the walk miss the last cell by one step: it is bounded instead.
         for _ in 0..(qx - x).abs() + (qy - y).abs() {
             if (x, y) == (qx, qy) {
                 break;
             }
+            let left = tx.min(ty).min(1.0);
+            visit(cell(x, y), left - entered);
+            entered = left;
             if tx < ty {
                 x += sx;
                 tx += tdx;
@@ -158,6 +170,7 @@ impl ReachabilityGrid {
                 return false;
             }
         }
+        visit(cell(x, y), (1.0 - entered).max(0.0));
         true
     }
 
@@ -246,9 +259,181 @@ impl ReachabilityGrid {
         None
     }
 
+    /// The cheapest path from `a` to `b` when a metre near an obstacle costs more than a metre
+    /// in the open, the way Nav2's planners read the costmap's inflation layer (and the DWA
+    /// baseline's A* does): `cost` gives the price of a metre at each distance `field` holds.
+    /// Such a path runs down the middle of a corridor or a door and swings wide round a wall's
+    /// end where the room allows, and still squeezes through where it must, so that a
+    /// controller that steers a lookahead ahead along it is not led onto the wall.
+    ///
+    /// A* over the 8-connected free cells, then string pulling: a run of cells is replaced by
+    /// the straight segment between its ends where that segment is free and costs no more
+    /// (otherwise the grid's 45-degree staircase would be the plan). `None` when `a` and `b`
+    /// are not connected; `field` must cover the grid's area at its resolution.
+    pub fn cheapest_path(
+        &self,
+        field: &ClearanceField,
+        cost: &crate::plan::PlanCost,
+        a: Vec2,
+        b: Vec2,
+    ) -> Option<Vec<Vec2>> {
+        if !self.connected(a, b) {
+            return None;
+        }
+        assert!(
+            (field.width, field.height) == (self.width, self.height),
+            "a clearance field of {}x{} cells for a grid of {}x{}",
+            field.width,
+            field.height,
+            self.width,
+            self.height
+        );
+        let w = self.width;
+        let index = |p: Vec2| {
+            let q = (p - self.origin) / self.resolution;
+            (q.y as usize) * w + q.x as usize
+        };
+        let (src, dst) = (index(a), index(b));
+        let centre = |i: usize| {
+            self.origin + Vec2::new(((i % w) as f32 + 0.5) * self.resolution, ((i / w) as f32 + 0.5) * self.resolution)
+        };
+        // Price per metre in each cell (read once per cell as it is first reached).
+        let price = |i: usize| cost.per_metre(field.distance[i]);
+        let mut g = vec![f32::INFINITY; self.labels.len()];
+        let mut parent = vec![usize::MAX; self.labels.len()];
+        let mut open = std::collections::BinaryHeap::new();
+        let key = |f: f32| std::cmp::Reverse(f.to_bits());
+        // Octile distance in metres: no 8-connected path is shorter, and no metre costs less
+        // than one, so A* stays optimal.
+        let (bx, by) = ((dst % w) as i64, (dst / w) as i64);
+        let heuristic = |i: usize| {
+            let (dx, dy) = ((((i % w) as i64) - bx).abs() as f32, (((i / w) as i64) - by).abs() as f32);
+            (dx.max(dy) + (std::f32::consts::SQRT_2 - 1.0) * dx.min(dy)) * self.resolution
+        };
+        g[src] = 0.0;
+        open.push((key(heuristic(src)), src));
+        let mut found = false;
+        while let Some((std::cmp::Reverse(f), c)) = open.pop() {
+            if f32::from_bits(f) > g[c] + heuristic(c) {
+                continue;
+            }
+            if c == dst {
+                found = true;
+                break;
+            }
+            let (x, y) = ((c % w) as i64, (c / w) as i64);
+            let pc = price(c);
+            for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
+                let (nx, ny) = (x + dx, y + dy);
+                // No diagonal squeezes past a blocked corner.
+                if !self.free(nx, ny) || (dx != 0 && dy != 0 && !(self.free(nx, y) && self.free(x, ny))) {
+                    continue;
+                }
+                let n = ny as usize * w + nx as usize;
+                let len = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 } * self.resolution;
+                let cand = g[c] + len * 0.5 * (pc + price(n));
+                if cand < g[n] {
+                    g[n] = cand;
+                    parent[n] = c;
+                    open.push((key(cand + heuristic(n)), n));
+                }
+            }
+        }
+        if !found {
+            return None;
+        }
+        let mut cells = vec![dst];
+        while *cells.last().expect("not empty") != src {
+            cells.push(parent[*cells.last().expect("not empty")]);
+        }
+        cells.reverse();
+        // The exact start and goal stand for their cells.
+        let mut points: Vec<Vec2> = cells.iter().map(|&i| centre(i)).collect();
+        points[0] = a;
+        *points.last_mut().expect("not empty") = b;
+        // What the grid path costs from its start to each point (the first and last steps
+        // re-priced for the exact start and goal).
+        let mut spent = vec![0.0f32; points.len()];
+        for k in 1..points.len() {
+            let step = (points[k] - points[k - 1]).length() * 0.5 * (price(cells[k - 1]) + price(cells[k]));
+            spent[k] = spent[k - 1] + step;
+        }
+        let line_cost = |p: Vec2, q: Vec2| {
+            let len = (q - p).length();
+            let mut total = 0.0;
+            self.walk(p, q, |i, frac| total += frac * len * price(i)).then_some(total)
+        };
+        // Greedy string pulling: from each kept point, reach as far along as a cheaper-or-equal
+        // free segment goes.
+        let mut path = vec![a];
+        let mut anchor = 0;
+        let mut k = 1;
+        while k < points.len() {
+            let ok = |j: usize| {
+                line_cost(points[anchor], points[j]).is_some_and(|c| c <= (spent[j] - spent[anchor]) * 1.0001 + 1e-6)
+            };
+            if k + 1 < points.len() && ok(k + 1) {
+                k += 1;
+                continue;
+            }
+            path.push(points[k]);
+            anchor = k;
+            k += 1;
+        }
+        Some(path)
+    }
+
     /// Fraction of cells that are free.
     pub fn free_fraction(&self) -> f32 {
         self.labels.iter().filter(|l| **l != 0).count() as f32 / self.labels.len() as f32
+    }
+}
+
+/// Distance (m) from every cell centre of a raster to the nearest obstacle, up to a cap: what
+/// a planner's inflation cost is read from ([`ReachabilityGrid::cheapest_path`]). The raster
+/// is a [`ReachabilityGrid`]'s for the same area and resolution.
+#[derive(Clone, Debug)]
+pub struct ClearanceField {
+    width: usize,
+    height: usize,
+    distance: Vec<f32>,
+}
+
+impl ClearanceField {
+    /// Measures `area` of `world` at `resolution`, exactly from each obstacle's shape (and from
+    /// the map's blocked cells where the world has a map), each distance capped at `cap`.
+    pub fn new(world: &World, area: Rect, resolution: f32, cap: f32) -> Self {
+        let size = area.size();
+        let width = ((size.x / resolution).ceil() as usize).max(1);
+        let height = ((size.y / resolution).ceil() as usize).max(1);
+        let mut distance = vec![cap; width * height];
+        let centre =
+            |ix: usize, iy: usize| area.min + Vec2::new((ix as f32 + 0.5) * resolution, (iy as f32 + 0.5) * resolution);
+        for o in world.obstacles() {
+            let aabb = o.shape.compute_aabb(&o.pose);
+            let (bmin, bmax) = (Vec2::new(aabb.mins.x, aabb.mins.y), Vec2::new(aabb.maxs.x, aabb.maxs.y));
+            let lo = ((bmin - Vec2::splat(cap) - area.min) / resolution).floor();
+            let hi = ((bmax + Vec2::splat(cap) - area.min) / resolution).ceil();
+            let (x0, x1) = (lo.x.max(0.0) as usize, (hi.x.max(0.0) as usize).min(width));
+            let (y0, y1) = (lo.y.max(0.0) as usize, (hi.y.max(0.0) as usize).min(height));
+            for iy in y0..y1 {
+                for ix in x0..x1 {
+                    let d = &mut distance[iy * width + ix];
+                    *d = d.min(o.primitive.signed_distance(centre(ix, iy)).max(0.0));
+                }
+            }
+        }
+        if let Some(grid) = world.grid() {
+            for iy in 0..height {
+                for ix in 0..width {
+                    let d = &mut distance[iy * width + ix];
+                    if !grid.is_clear(centre(ix, iy), *d) {
+                        *d = d.min(grid.clearance(centre(ix, iy)));
+                    }
+                }
+            }
+        }
+        Self { width, height, distance }
     }
 }
 
@@ -416,6 +601,85 @@ mod tests {
         assert!(!g.connected(a, b), "too narrow for 0.35 m");
         assert_eq!(g.label(Vec2::new(0.0, 0.0)), 0, "on the wall");
         assert_eq!(g.label(Vec2::new(5.0, 0.0)), 0, "outside");
+    }
+
+    /// Least distance from the polyline to the world's obstacles, sampled every centimetre.
+    fn closest_approach(world: &World, path: &[Vec2]) -> f32 {
+        path.windows(2)
+            .flat_map(|s| {
+                let n = ((s[1] - s[0]).length() / 0.01).ceil().max(1.0) as usize;
+                (0..=n).map(move |k| s[0] + (s[1] - s[0]) * (k as f32 / n as f32))
+            })
+            .map(|p| world.clearance(p))
+            .fold(f32::INFINITY, f32::min)
+    }
+
+    fn cheapest(world: &World, area: Rect, clearance: f32, a: Vec2, b: Vec2) -> Option<Vec<Vec2>> {
+        let cost = crate::plan::PlanCost::nav2_like(clearance);
+        let g = ReachabilityGrid::new(world, area, clearance, 0.05);
+        let field = ClearanceField::new(world, area, 0.05, cost.reach());
+        g.cheapest_path(&field, &cost, a, b)
+    }
+
+    #[test]
+    fn clearance_field_holds_each_cells_distance_up_to_its_cap() {
+        let area = Rect { min: Vec2::splat(-2.0), max: Vec2::splat(2.0) };
+        let w = walls(
+            4.0,
+            vec![
+                ObstacleSpec::Circle { center: [0.5, 0.3], radius: 0.2 },
+                ObstacleSpec::Wall { from: [-1.0, -2.0], to: [-1.0, 0.5] },
+            ],
+        );
+        let f = ClearanceField::new(&w, area, 0.05, 0.6);
+        assert_eq!((f.width, f.height), (80, 80));
+        for (i, d) in f.distance.iter().enumerate() {
+            let c = area.min + Vec2::new(((i % 80) as f32 + 0.5) * 0.05, ((i / 80) as f32 + 0.5) * 0.05);
+            let want = w.clearance(c).clamp(0.0, 0.6);
+            assert!((d - want).abs() < 1e-4, "cell {i} at {c:?}: {d} vs {want}");
+        }
+    }
+
+    #[test]
+    fn cheapest_path_is_straight_in_the_open_and_keeps_off_walls_where_the_room_allows() {
+        let area = Rect { min: Vec2::splat(-3.0), max: Vec2::splat(3.0) };
+        let (a, b) = (Vec2::new(-2.0, -1.0), Vec2::new(2.0, 0.4));
+        // Open room: one segment, not the 8-connected grid's staircase.
+        let open = walls(6.0, vec![]);
+        let p = cheapest(&open, area, 0.25, a, b).unwrap();
+        assert_eq!(p, vec![a, b]);
+        // An L corridor 1.2 m wide round an inner block: the shortest path hugs the block's
+        // corner at the bare clearance, the cheapest one keeps to the middle.
+        let l = walls(
+            6.0,
+            vec![
+                ObstacleSpec::Wall { from: [-3.0, -1.8], to: [1.8, -1.8] },
+                ObstacleSpec::Wall { from: [1.8, -1.8], to: [1.8, 3.0] },
+            ],
+        );
+        let (a, b) = (Vec2::new(-2.4, -2.4), Vec2::new(2.4, 2.2));
+        let shortest = ReachabilityGrid::new(&l, area, 0.25, 0.05).shortest_path(a, b).unwrap();
+        let p = cheapest(&l, area, 0.25, a, b).unwrap();
+        let (hug, keep) = (closest_approach(&l, &shortest), closest_approach(&l, &p));
+        assert!(hug < 0.32, "the shortest path passes {hug} m from the walls");
+        assert!(keep > 0.5, "the cheapest path passes {keep} m from the walls");
+        assert_eq!((p[0], *p.last().unwrap()), (a, b));
+        assert!(crate::plan::path_length(&p) < crate::plan::path_length(&shortest) + 1.0);
+        // A 0.7 m door: too tight for any berth, so the path squeezes through its middle.
+        let door = walls(
+            6.0,
+            vec![
+                ObstacleSpec::Wall { from: [0.0, -3.0], to: [0.0, 0.35] },
+                ObstacleSpec::Wall { from: [0.0, 1.05], to: [0.0, 3.0] },
+            ],
+        );
+        let (a, b) = (Vec2::new(-2.0, -2.0), Vec2::new(2.0, -2.0));
+        let p = cheapest(&door, area, 0.25, a, b).unwrap();
+        let through = closest_approach(&door, &p);
+        assert!(through > 0.32, "through the door {through} m from its jambs (the middle, 0.35 m, within half a cell)");
+        // Cut off entirely: none.
+        let shut = walls(6.0, vec![ObstacleSpec::Wall { from: [0.0, -3.0], to: [0.0, 3.0] }]);
+        assert_eq!(cheapest(&shut, area, 0.25, a, b), None);
     }
 
     #[test]

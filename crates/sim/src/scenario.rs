@@ -9,7 +9,7 @@ use crate::map::{MAP_PRESETS, MapRef, OccupancyGrid};
 use crate::movers::{Mover, MoverShape, MoverSpec, PathMode};
 use crate::people::{PeopleGenSpec, Person, PersonSpec};
 use crate::placement::{Candidate, CellPlacement, NoPair};
-use crate::reachability::ReachabilityGrid;
+use crate::reachability::{ClearanceField, ReachabilityGrid};
 use crate::world::World;
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
@@ -635,9 +635,9 @@ pub struct Scenario {
     grid: Option<Arc<OccupancyGrid>>,
     /// World and reachability of a scenario without a generator (built once).
     fixed_world: Option<(Arc<World>, Arc<ReachabilityGrid>)>,
-    /// The free space at the robot's clearance plus [`crate::plan::PLAN_BERTH`] of a fixed
-    /// world, built by the first plan in it.
-    berth_grid: std::sync::OnceLock<Arc<ReachabilityGrid>>,
+    /// A fixed world's distances to obstacles for its plans' costs, measured by the first plan
+    /// in it.
+    plan_field: std::sync::OnceLock<Arc<ClearanceField>>,
     /// Start and goal candidates listed once, for a fixed world on a map with `free` or
     /// `region` placement (a real map is mostly unknown space and walls: drawing points over
     /// its bounds and keeping the good ones misses too often).
@@ -705,7 +705,7 @@ impl Scenario {
             fixed,
             grid,
             fixed_world: None,
-            berth_grid: std::sync::OnceLock::new(),
+            plan_field: std::sync::OnceLock::new(),
             cells: None,
             clearance,
             start_clearance: clearance + start_extra.max(0.0),
@@ -799,21 +799,21 @@ impl Scenario {
 
     /// The global plan from `start` to `goal` in `world` (whose free space at the robot's
     /// clearance is `reach`), as a planner with the room's map gives a Nav2 controller: the
-    /// shortest path that keeps [`crate::plan::PLAN_BERTH`] more than the clearance from
-    /// obstacles, or, where the room is too tight for that at the start, the goal or on the
-    /// way, the shortest path at the bare clearance. A fixed world's wider free space is built
-    /// once.
+    /// cheapest path when a metre near an obstacle costs more ([`crate::plan::PlanCost`], the
+    /// inflation cost Nav2's planners and the DWA baseline plan with), which keeps to the middle
+    /// of doors and corridors and swings wide round a wall's end where the room allows. A fixed
+    /// world's distances are measured once.
     pub fn global_plan(&self, world: &World, reach: &ReachabilityGrid, start: Vec2, goal: Vec2) -> Option<Vec<Vec2>> {
-        let widen =
-            || ReachabilityGrid::new(world, self.area, self.clearance + crate::plan::PLAN_BERTH, reach.resolution());
+        let cost = crate::plan::PlanCost::nav2_like(self.clearance);
+        let measure = || ClearanceField::new(world, self.area, reach.resolution(), cost.reach());
         let owned;
-        let wide = if self.fixed_world.is_some() {
-            self.berth_grid.get_or_init(|| Arc::new(widen())).as_ref()
+        let field = if self.fixed_world.is_some() {
+            self.plan_field.get_or_init(|| Arc::new(measure())).as_ref()
         } else {
-            owned = widen();
+            owned = measure();
             &owned
         };
-        wide.shortest_path(start, goal).or_else(|| reach.shortest_path(start, goal))
+        reach.cheapest_path(field, &cost, start, goal)
     }
 
     /// The area starts, goals and generated obstacles are drawn in.
