@@ -15,6 +15,7 @@ pub const TRAIN_PRESETS: &[(&str, &str)] = &[
     ("dynamic-lstm", include_str!("../../../configs/dynamic-lstm.yaml")),
     ("smoke", include_str!("../../../configs/smoke.yaml")),
     ("barn-jackal", include_str!("../../../configs/barn-jackal.yaml")),
+    ("allrobots-plan-mlp", include_str!("../../../configs/allrobots-plan-mlp.yaml")),
 ];
 
 /// The built-in default run (`rlnav train` with no `--config`).
@@ -206,6 +207,10 @@ pub struct StageConfig {
     pub name: String,
     /// Scenario (shipped name or file).
     pub scenario: String,
+    /// More scenarios trained beside `scenario` in this stage, in equal shares (see
+    /// [`RunConfig::mix`]).
+    #[serde(default)]
+    pub mix: Vec<String>,
     /// Task values changed in this stage, by dotted key (`reward.goal: 40`).
     #[serde(default)]
     pub task: std::collections::BTreeMap<String, Value>,
@@ -280,6 +285,11 @@ pub struct RunConfig {
     pub robot: String,
     /// Training scenario when there is no curriculum.
     pub scenario: String,
+    /// More scenarios trained beside `scenario` when there is no curriculum, in equal shares:
+    /// with `n` robots, environment `i` draws scenario `(i / n) % (1 + mix.len())` of
+    /// `[scenario, mix...]` (static rooms beside rooms with traffic, say), so that one policy
+    /// keeps both skills rather than trading one for the other stage by stage.
+    pub mix: Vec<String>,
     /// Robots trained together, environment `i` driving `robots[i % n]` (in training and in
     /// evaluations), so that one policy learns to drive them all; empty (the default): `robot`
     /// alone. Their observations must have one length.
@@ -326,6 +336,7 @@ impl Default for RunConfig {
             seed: 0,
             robot: "jetbot".into(),
             scenario: "random-static".into(),
+            mix: Vec::new(),
             robots: Vec::new(),
             task: TaskConfig::default(),
             network: NetworkConfig::default(),
@@ -363,6 +374,19 @@ impl Validate for RunConfig {
             return Err(Invalid::new(
                 "robot",
                 format!("one of `robots` ({}): the contract's scan is this robot's", self.robots.join(", ")),
+            ));
+        }
+        // Every scenario-robot pair needs an environment, or a mixed scenario is never trained.
+        let robots = self.robots.len().max(1);
+        let pairs = std::iter::once(self.mix.len())
+            .chain(self.curriculum.iter().map(|s| s.mix.len()))
+            .map(|m| (1 + m) * robots)
+            .max()
+            .unwrap_or(1);
+        if t.num_actors < pairs {
+            return Err(Invalid::new(
+                "train.num_actors",
+                format!("at least one environment per scenario and robot ({pairs}), got {}", t.num_actors),
             ));
         }
         let batch = t.num_actors * t.horizon_length;
@@ -552,6 +576,8 @@ mod tests {
         assert!(e.contains("train.minibatch_size") && e.contains("divisor"), "{e}");
         let e = load_run_config(None, &["nonsense".into()]).unwrap_err().to_string();
         assert!(e.contains("KEY=VALUE"), "{e}");
+        let e = load_run_config(None, &["mix=[a, b, c]".into(), "train.num_actors=3".into()]).unwrap_err().to_string();
+        assert!(e.contains("train.num_actors") && e.contains("scenario and robot (4)"), "{e}");
         let e = load_run_config(Some("no-such-config"), &[]).unwrap_err().to_string();
         assert!(e.contains("static-mlp"), "{e}");
     }

@@ -190,6 +190,7 @@ fn stages(cfg: &RunConfig) -> Vec<StageConfig> {
         vec![StageConfig {
             name: "main".into(),
             scenario: cfg.scenario.clone(),
+            mix: cfg.mix.clone(),
             task: Default::default(),
             advance: Default::default(),
         }]
@@ -229,10 +230,18 @@ fn setups_for(
         .collect()
 }
 
-/// A training stage's setups, with difficulty levels under an automatic curriculum.
+/// A training stage's setups, with difficulty levels under an automatic curriculum: each of
+/// the stage's scenarios (`scenario`, then `mix`) for each robot, in that order, so that
+/// environment `i` takes setup `i % len` (`VecEnv::new_mixed`) and every pair gets an equal
+/// share.
 fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
     let task = apply_task_overrides(&cfg.task, &stage.task, &stage.name)?;
-    env_setup(cfg, &stage.scenario, task, cfg.auto_curriculum.as_ref().map(|a| a.levels))
+    let levels = cfg.auto_curriculum.as_ref().map(|a| a.levels);
+    let mut setups = Vec::new();
+    for scenario in std::iter::once(&stage.scenario).chain(&stage.mix) {
+        setups.extend(env_setup(cfg, scenario, task.clone(), levels)?);
+    }
+    Ok(setups)
 }
 
 /// The hand-written learner's Adam state in a checkpoint (burn's learner writes `optimizer.bpk`).
@@ -812,4 +821,34 @@ pub fn evaluate_run(
     let episodes = episodes / envs * envs;
     let (summary, episodes) = evaluate(&ppo, &setup, episodes, envs, seed, cfg.train.threads, &mut |n| progress(n))?;
     Ok(RunEvaluation { scenario, seed, summary, episodes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mixed_stage_gives_every_scenario_and_robot_pair_an_equal_share() {
+        let mut cfg = RunConfig {
+            robots: vec!["jetbot".into(), "turtlebot3-burger".into()],
+            scenario: "random-static".into(),
+            mix: vec!["empty-room".into()],
+            ..Default::default()
+        };
+        let stage = &stages(&cfg)[0];
+        let setups = stage_setup(&cfg, stage).unwrap();
+        let pairs: Vec<(String, String)> =
+            setups.iter().map(|s| (s.scenario.spec().name.clone(), s.robot.name.clone())).collect();
+        let want = [
+            ("random-static", "jetbot"),
+            ("random-static", "turtlebot3-burger"),
+            ("empty-room", "jetbot"),
+            ("empty-room", "turtlebot3-burger"),
+        ];
+        assert_eq!(pairs, want.map(|(s, r)| (s.to_string(), r.to_string())));
+        // A mixed scenario that does not load is named.
+        cfg.mix = vec!["no-such-room".into()];
+        let e = stage_setup(&cfg, &stages(&cfg)[0]).unwrap_err().to_string();
+        assert!(e.contains("no-such-room"), "{e}");
+    }
 }
