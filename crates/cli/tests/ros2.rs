@@ -237,12 +237,27 @@ fn cyclone_dds_reads_the_sim_bridge() {
 /// commanded to stop (a zero /cmd_vel) before it exits, as it does on Ctrl-C.
 #[test]
 fn sigterm_leaves_the_robot_commanded_to_stop() {
+    drive_then_sigterm(&["--policy", &format!("{ROOT}/{POLICY}")], 68);
+}
+
+/// Without `--policy` the node runs the policy built into the binary (policies/default.onnx):
+/// a robot needs no checkout beside the binary.
+#[test]
+fn the_node_runs_its_built_in_policy_without_a_policy_file() {
+    let stderr = drive_then_sigterm(&[], 73);
+    assert!(stderr.contains("policies/default.onnx (built in)"), "{stderr}");
+}
+
+/// Runs `rlnav ros2 node ARGS --goal 30 0` against an open scan until it drives, sends it
+/// SIGTERM and checks that it exits cleanly with a zero /cmd_vel last; returns its stderr.
+fn drive_then_sigterm(args: &[&str], domain: u16) -> String {
     use rlnav_ros2::bus::{Bus, Qos, Reach, drain};
     use rlnav_ros2::msg::*;
     use std::time::{Duration, Instant};
-    let domain = 68u16;
     let mut node = Command::new(BIN)
-        .args(["ros2", "node", "--policy", &format!("{ROOT}/{POLICY}"), "--goal", "30", "0", "--localhost"])
+        .args(["ros2", "node"])
+        .args(args)
+        .args(["--goal", "30", "0", "--localhost"])
         .env("ROS_DOMAIN_ID", domain.to_string())
         .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         .stdout(std::process::Stdio::null())
@@ -309,4 +324,5 @@ fn sigterm_leaves_the_robot_commanded_to_stop() {
     assert!(status.success(), "the node exits cleanly on SIGTERM: {status:?}\n{stderr}");
     let last = last.expect("commands received");
     assert_eq!((last.linear.x, last.angular.z), (0.0, 0.0), "last command after SIGTERM: {last:?}\n{stderr}");
+    stderr
 }

@@ -140,9 +140,14 @@ pub fn input_dims(proto: &pb::ModelProto, name: &str) -> Option<Vec<Option<i64>>
 pub fn read_model(path: &Path) -> Result<pb::ModelProto, PolicyError> {
     let file = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|error| PolicyError::Io { file: file.clone(), error })?;
+    parse_model(&file, &bytes)
+}
+
+/// Parses an ONNX model held in memory (`file` names it in errors).
+fn parse_model(file: &str, bytes: &[u8]) -> Result<pb::ModelProto, PolicyError> {
     tract_onnx::onnx()
-        .proto_model_for_read(&mut bytes.as_slice())
-        .map_err(|e| PolicyError::Model { file, message: format!("{e:#}") })
+        .proto_model_for_read(&mut &bytes[..])
+        .map_err(|e| PolicyError::Model { file: file.to_string(), message: format!("{e:#}") })
 }
 
 /// The contract embedded in a model, if any.
@@ -163,6 +168,14 @@ impl PolicyRunner {
             None => embedded_contract(&proto, &file)?.ok_or(PolicyError::NoContract { file: file.clone() })?,
         };
         Self::from_proto(&file, &proto, contract)
+    }
+
+    /// Loads a model held in memory with its embedded contract (a policy built into a
+    /// binary); `name` stands for its file in errors.
+    pub fn from_bytes(name: &str, bytes: &[u8]) -> Result<Self, PolicyError> {
+        let proto = parse_model(name, bytes)?;
+        let contract = embedded_contract(&proto, name)?.ok_or(PolicyError::NoContract { file: name.to_string() })?;
+        Self::from_proto(name, &proto, contract)
     }
 
     /// Builds a runner from a parsed model and a contract.

@@ -44,7 +44,8 @@ fn suite_help() -> String {
 }
 
 /// The shipped policies `rlnav bench` runs by default (with DWA).
-const SHIPPED_POLICIES: [&str; 2] = ["policies/jetbot-static-mlp.onnx", "policies/jetbot-dynamic-lstm.onnx"];
+const SHIPPED_POLICIES: [&str; 3] =
+    ["policies/default.onnx", "policies/jetbot-static-mlp.onnx", "policies/jetbot-dynamic-lstm.onnx"];
 
 pub fn run(a: Args) -> Result<()> {
     let out = &a.out;

@@ -30,16 +30,24 @@ impl DdsArgs {
     }
 }
 
+/// The policy `rlnav ros2 node` runs without `--policy`, built into the binary so that a
+/// robot needs no checkout beside it.
+const DEFAULT_POLICY: &[u8] = include_bytes!("../../../../policies/default.onnx");
+/// Where [`DEFAULT_POLICY`] comes from, for messages.
+const DEFAULT_POLICY_NAME: &str = "policies/default.onnx";
+
 #[derive(Subcommand)]
 pub enum Command {
     /// Drive a robot with a policy: /scan and /odom (or a pose topic) in, /cmd_vel out, the
     /// goal from --goal, the parameters or /goal_pose; state on /rlnav/status.
     Node {
-        /// The policy (ONNX with its contract, e.g. policies/jetbot-static-mlp.onnx).
+        /// The policy (ONNX with its contract, e.g. policies/jetbot-static-mlp.onnx); default:
+        /// the built-in policies/default.onnx, one policy for the Jetbot, TurtleBot3 Burger and
+        /// Waffle and TurtleBot 4 Lite that follows Nav2's plans.
         #[arg(long)]
-        policy: PathBuf,
+        policy: Option<PathBuf>,
         /// A side contract for a policy file without one.
-        #[arg(long)]
+        #[arg(long, requires = "policy")]
         contract: Option<PathBuf>,
         /// Parameter YAML (topics, frames, limits, timeouts; flat or ROS 2's
         /// `node: {ros__parameters: ...}`).
@@ -118,11 +126,17 @@ pub fn run(command: Command) -> Result<()> {
             for r in unmatched {
                 eprintln!("[{}] remapping {r} matches none of the node's topics", p.node());
             }
-            let runner = rlnav_policy::PolicyRunner::load(&policy, contract.as_deref())?;
+            let (runner, policy) = match &policy {
+                Some(f) => (rlnav_policy::PolicyRunner::load(f, contract.as_deref())?, f.display().to_string()),
+                None => (
+                    rlnav_policy::PolicyRunner::from_bytes(DEFAULT_POLICY_NAME, DEFAULT_POLICY)?,
+                    format!("{DEFAULT_POLICY_NAME} (built in)"),
+                ),
+            };
             let c = runner.contract();
             eprintln!(
                 "rlnav_policy: {} ({} beams over [{:.2}, {:.2}] rad, every {:.3} s) on domain {domain}; {} -> {}",
-                policy.display(),
+                policy,
                 c.scan.beams,
                 c.scan.angle_min,
                 c.scan.angle_max,
