@@ -1,7 +1,7 @@
 //! Following a global plan the way a Nav2 controller does: the policy steers to a point a
 //! lookahead ahead along the path rather than to the goal itself. The ROS 2 node follows the
-//! plans Nav2 sends; training and the benchmark follow the shortest path past the static world
-//! (what a planner with the room's map would give).
+//! plans Nav2 sends; training and the benchmark follow the cheapest path past the static world
+//! under [`PlanCost`] (what a Nav2 planner with the room's map would give).
 
 use crate::geometry::Vec2;
 

@@ -164,9 +164,10 @@ pub struct TaskConfig {
     pub observation: ObservationLayout,
     /// Domain randomisation (all off by default).
     pub randomization: RandomizationConfig,
-    /// Follow a global plan like a Nav2 controller (off by default): the episode's shortest
-    /// path past the static world is planned at reset, the observation's goal terms describe
-    /// the point `lookahead` ahead along it, and progress is rewarded along the path.
+    /// Follow a global plan like a Nav2 controller (off by default): the episode's plan past
+    /// the static world ([`crate::Scenario::global_plan`]) is made at reset, the observation's
+    /// goal terms describe the point `lookahead` ahead along it, and progress is rewarded along
+    /// the path.
     pub plan: Option<PlanConfig>,
 }
 
