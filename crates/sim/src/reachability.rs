@@ -2,16 +2,62 @@
 //! clearance radius, labelled into connected components (4-connected, run-based union-find).
 //! Built once per world; after that "can the robot get from A to B" is two look-ups.
 
-use crate::geometry::{Rect, Vec2};
+use crate::geometry::{Obstacle, Rect, Vec2};
 use crate::world::World;
+use std::ops::Range;
 
-/// Connected free space of a world for a disc-shaped robot.
-#[derive(Clone, Debug)]
-pub struct ReachabilityGrid {
+/// Square cells over an area, row by row from its lower left corner: what the free space and
+/// the clearance field are measured on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Raster {
     origin: Vec2,
     resolution: f32,
     width: usize,
     height: usize,
+}
+
+impl Raster {
+    fn new(area: Rect, resolution: f32) -> Self {
+        let size = area.size();
+        let width = ((size.x / resolution).ceil() as usize).max(1);
+        let height = ((size.y / resolution).ceil() as usize).max(1);
+        Self { origin: area.min, resolution, width, height }
+    }
+
+    fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// Centre of cell `i` (row-major).
+    fn centre(&self, i: usize) -> Vec2 {
+        let (ix, iy) = (i % self.width, i / self.width);
+        self.origin + Vec2::new((ix as f32 + 0.5) * self.resolution, (iy as f32 + 0.5) * self.resolution)
+    }
+
+    /// The cell holding `p`, a point inside the area.
+    fn index(&self, p: Vec2) -> usize {
+        let q = (p - self.origin) / self.resolution;
+        (q.y as usize) * self.width + q.x as usize
+    }
+
+    /// The columns and rows of the cells within `margin` of `o`'s bounding box (a wall's
+    /// bounding circle would cover the whole room): the only cells `o` can matter to.
+    fn near(&self, o: &Obstacle, margin: f32) -> (Range<usize>, Range<usize>) {
+        let aabb = o.shape.compute_aabb(&o.pose);
+        let (bmin, bmax) = (Vec2::new(aabb.mins.x, aabb.mins.y), Vec2::new(aabb.maxs.x, aabb.maxs.y));
+        let lo = ((bmin - Vec2::splat(margin) - self.origin) / self.resolution).floor();
+        let hi = ((bmax + Vec2::splat(margin) - self.origin) / self.resolution).ceil();
+        (
+            lo.x.max(0.0) as usize..(hi.x.max(0.0) as usize).min(self.width),
+            lo.y.max(0.0) as usize..(hi.y.max(0.0) as usize).min(self.height),
+        )
+    }
+}
+
+/// Connected free space of a world for a disc-shaped robot.
+#[derive(Clone, Debug)]
+pub struct ReachabilityGrid {
+    raster: Raster,
     /// 0: blocked; otherwise the component label.
     labels: Vec<u32>,
 }
@@ -26,56 +72,42 @@ impl ReachabilityGrid {
     /// TurtleBot3 world map its extra centimetre cut the 0.35 m-clearance free space between
     /// the pillars into islands about a metre across.)
     pub fn new(world: &World, area: Rect, radius: f32, resolution: f32) -> Self {
-        let size = area.size();
-        let width = ((size.x / resolution).ceil() as usize).max(1);
-        let height = ((size.y / resolution).ceil() as usize).max(1);
-        let mut blocked = vec![false; width * height];
+        let raster = Raster::new(area, resolution);
+        let mut blocked = vec![false; raster.len()];
         let inflation = radius + 0.5 * resolution;
-        let centre =
-            |ix: usize, iy: usize| area.min + Vec2::new((ix as f32 + 0.5) * resolution, (iy as f32 + 0.5) * resolution);
-        // Obstacle-major: only the cells near each obstacle (its bounding box: a wall's bounding
-        // circle would cover the whole room) are tested against it.
+        // Obstacle-major: only the cells near each obstacle are tested against it.
         for o in world.obstacles() {
-            let aabb = o.shape.compute_aabb(&o.pose);
-            let (bmin, bmax) = (Vec2::new(aabb.mins.x, aabb.mins.y), Vec2::new(aabb.maxs.x, aabb.maxs.y));
-            let lo = ((bmin - Vec2::splat(inflation) - area.min) / resolution).floor();
-            let hi = ((bmax + Vec2::splat(inflation) - area.min) / resolution).ceil();
-            let (x0, x1) = (lo.x.max(0.0) as usize, (hi.x.max(0.0) as usize).min(width));
-            let (y0, y1) = (lo.y.max(0.0) as usize, (hi.y.max(0.0) as usize).min(height));
-            for iy in y0..y1 {
-                for ix in x0..x1 {
-                    let cell = &mut blocked[iy * width + ix];
-                    if !*cell && o.primitive.signed_distance(centre(ix, iy)) < inflation {
-                        *cell = true;
+            let (xs, ys) = raster.near(o, inflation);
+            for iy in ys {
+                for i in xs.clone().map(|ix| iy * raster.width + ix) {
+                    if !blocked[i] && o.primitive.signed_distance(raster.centre(i)) < inflation {
+                        blocked[i] = true;
                     }
                 }
             }
         }
         if let Some(grid) = world.grid() {
-            for iy in 0..height {
-                for ix in 0..width {
-                    let cell = &mut blocked[iy * width + ix];
-                    if !*cell && !grid.is_clear(centre(ix, iy), inflation) {
-                        *cell = true;
-                    }
+            for (i, cell) in blocked.iter_mut().enumerate() {
+                if !*cell && !grid.is_clear(raster.centre(i), inflation) {
+                    *cell = true;
                 }
             }
         }
-        let labels = label_components(&blocked, width, height);
-        Self { origin: area.min, resolution, width, height, labels }
+        let labels = label_components(&blocked, raster.width, raster.height);
+        Self { raster, labels }
     }
 
     /// Component label of the cell containing `p` (0 if blocked or outside).
     pub fn label(&self, p: Vec2) -> u32 {
-        let q = (p - self.origin) / self.resolution;
+        let q = (p - self.raster.origin) / self.raster.resolution;
         if q.x < 0.0 || q.y < 0.0 {
             return 0;
         }
         let (ix, iy) = (q.x as usize, q.y as usize);
-        if ix >= self.width || iy >= self.height {
+        if ix >= self.raster.width || iy >= self.raster.height {
             return 0;
         }
-        self.labels[iy * self.width + ix]
+        self.labels[iy * self.raster.width + ix]
     }
 
     /// Whether a robot can drive from `a` to `b` keeping its clearance.
@@ -86,16 +118,12 @@ impl ReachabilityGrid {
 
     /// Cell size (m).
     pub fn resolution(&self) -> f32 {
-        self.resolution
+        self.raster.resolution
     }
 
     /// Every cell's centre and component label (0: blocked), row by row from the lower left.
     pub fn cells(&self) -> impl Iterator<Item = (Vec2, u32)> + '_ {
-        self.labels.iter().enumerate().map(move |(i, l)| {
-            let (ix, iy) = (i % self.width, i / self.width);
-            let c = self.origin + Vec2::new((ix as f32 + 0.5) * self.resolution, (iy as f32 + 0.5) * self.resolution);
-            (c, *l)
-        })
+        self.labels.iter().enumerate().map(move |(i, l)| (self.raster.centre(i), *l))
     }
 
     /// Length of the shortest path from `a` to `b` that keeps the robot's clearance (m), or
@@ -106,10 +134,25 @@ impl ReachabilityGrid {
         self.shortest_path(a, b).map(|p| crate::plan::path_length(&p))
     }
 
+    /// The cells a path can step to from cell `c` on the 8-connected grid, each with whether
+    /// the step is diagonal (no diagonal squeezes past a blocked corner).
+    fn neighbours(&self, c: usize) -> impl Iterator<Item = (usize, bool)> + '_ {
+        let w = self.raster.width;
+        let (x, y) = ((c % w) as i64, (c / w) as i64);
+        [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)].into_iter().filter_map(
+            move |(dx, dy)| {
+                let (nx, ny) = (x + dx, y + dy);
+                let diagonal = dx != 0 && dy != 0;
+                let ok = self.free(nx, ny) && (!diagonal || (self.free(nx, y) && self.free(x, ny)));
+                ok.then_some((ny as usize * w + nx as usize, diagonal))
+            },
+        )
+    }
+
     /// Whether cell `(x, y)` is inside the grid and free.
     fn free(&self, x: i64, y: i64) -> bool {
-        x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height && {
-            self.labels[y as usize * self.width + x as usize] != 0
+        x >= 0 && y >= 0 && (x as usize) < self.raster.width && (y as usize) < self.raster.height && {
+            self.labels[y as usize * self.raster.width + x as usize] != 0
         }
     }
 
@@ -124,7 +167,8 @@ impl ReachabilityGrid {
     /// `visit(cell, fraction)` with the fraction of the segment inside each; false (and the
     /// walk stops) at the first cell that is blocked.
     fn walk(&self, p: Vec2, q: Vec2, mut visit: impl FnMut(usize, f32)) -> bool {
-        let (p, q) = ((p - self.origin) / self.resolution, (q - self.origin) / self.resolution);
+        let (p, q) =
+            ((p - self.raster.origin) / self.raster.resolution, (q - self.raster.origin) / self.raster.resolution);
         let (mut x, mut y) = (p.x.floor() as i64, p.y.floor() as i64);
         let (qx, qy) = (q.x.floor() as i64, q.y.floor() as i64);
         if !self.free(x, y) {
@@ -141,7 +185,7 @@ impl ReachabilityGrid {
         if d.y == 0.0 {
             ty = f32::INFINITY;
         }
-        let cell = |x: i64, y: i64| y as usize * self.width + x as usize;
+        let cell = |x: i64, y: i64| y as usize * self.raster.width + x as usize;
         let mut entered = 0.0f32;
         // Rounding can make the walk miss the last cell by one step: it is bounded instead.
         for _ in 0..(qx - x).abs() + (qy - y).abs() {
@@ -183,32 +227,14 @@ impl ReachabilityGrid {
         if !self.connected(a, b) {
             return None;
         }
-        let w = self.width;
-        let index = |p: Vec2| {
-            let q = (p - self.origin) / self.resolution;
-            (q.y as usize) * w + q.x as usize
-        };
-        let (src, dst) = (index(a), index(b));
+        let (src, dst) = (self.raster.index(a), self.raster.index(b));
         // The exact start and goal stand for their cells; other nodes are cell centres.
         let point = |i: usize| match i {
             _ if i == src => a,
             _ if i == dst => b,
-            _ => {
-                self.origin
-                    + Vec2::new(((i % w) as f32 + 0.5) * self.resolution, ((i / w) as f32 + 0.5) * self.resolution)
-            }
+            _ => self.raster.centre(i),
         };
-        // The neighbours a node can move to on the grid (no diagonal squeezes past a corner).
-        let neighbours = |c: usize| {
-            let (x, y) = ((c % w) as i64, (c / w) as i64);
-            [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)].into_iter().filter_map(
-                move |(dx, dy)| {
-                    let (nx, ny) = (x + dx, y + dy);
-                    let ok = self.free(nx, ny) && (dx == 0 || dy == 0 || (self.free(nx, y) && self.free(x, ny)));
-                    ok.then_some(ny as usize * w + nx as usize)
-                },
-            )
-        };
+        let neighbours = |c: usize| self.neighbours(c).map(|(n, _)| n);
         let mut g = vec![f32::INFINITY; self.labels.len()];
         let mut parent = vec![usize::MAX; self.labels.len()];
         let mut closed = vec![false; self.labels.len()];
@@ -280,25 +306,12 @@ impl ReachabilityGrid {
         if !self.connected(a, b) {
             return None;
         }
-        assert!(
-            (field.width, field.height) == (self.width, self.height),
-            "a clearance field of {}x{} cells for a grid of {}x{}",
-            field.width,
-            field.height,
-            self.width,
-            self.height
-        );
-        let w = self.width;
-        let index = |p: Vec2| {
-            let q = (p - self.origin) / self.resolution;
-            (q.y as usize) * w + q.x as usize
-        };
-        let (src, dst) = (index(a), index(b));
-        let centre = |i: usize| {
-            self.origin + Vec2::new(((i % w) as f32 + 0.5) * self.resolution, ((i / w) as f32 + 0.5) * self.resolution)
-        };
-        // Price per metre in each cell (read once per cell as it is first reached).
-        let price = |i: usize| cost.per_metre(field.distance[i]);
+        assert_eq!(field.raster, self.raster, "a clearance field measured on another raster");
+        let (w, res) = (self.raster.width, self.raster.resolution);
+        let (src, dst) = (self.raster.index(a), self.raster.index(b));
+        // Price per metre in each cell.
+        let prices: Vec<f32> = field.distance.iter().map(|d| cost.per_metre(*d)).collect();
+        let price = |i: usize| prices[i];
         let mut g = vec![f32::INFINITY; self.labels.len()];
         let mut parent = vec![usize::MAX; self.labels.len()];
         let mut open = std::collections::BinaryHeap::new();
@@ -308,7 +321,7 @@ impl ReachabilityGrid {
         let (bx, by) = ((dst % w) as i64, (dst / w) as i64);
         let heuristic = |i: usize| {
             let (dx, dy) = ((((i % w) as i64) - bx).abs() as f32, (((i / w) as i64) - by).abs() as f32);
-            (dx.max(dy) + (std::f32::consts::SQRT_2 - 1.0) * dx.min(dy)) * self.resolution
+            (dx.max(dy) + (std::f32::consts::SQRT_2 - 1.0) * dx.min(dy)) * res
         };
         g[src] = 0.0;
         open.push((key(heuristic(src)), src));
@@ -321,16 +334,9 @@ impl ReachabilityGrid {
                 found = true;
                 break;
             }
-            let (x, y) = ((c % w) as i64, (c / w) as i64);
             let pc = price(c);
-            for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
-                let (nx, ny) = (x + dx, y + dy);
-                // No diagonal squeezes past a blocked corner.
-                if !self.free(nx, ny) || (dx != 0 && dy != 0 && !(self.free(nx, y) && self.free(x, ny))) {
-                    continue;
-                }
-                let n = ny as usize * w + nx as usize;
-                let len = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 } * self.resolution;
+            for (n, diagonal) in self.neighbours(c) {
+                let len = if diagonal { std::f32::consts::SQRT_2 } else { 1.0 } * res;
                 let cand = g[c] + len * 0.5 * (pc + price(n));
                 if cand < g[n] {
                     g[n] = cand;
@@ -348,7 +354,7 @@ impl ReachabilityGrid {
         }
         cells.reverse();
         // The exact start and goal stand for their cells.
-        let mut points: Vec<Vec2> = cells.iter().map(|&i| centre(i)).collect();
+        let mut points: Vec<Vec2> = cells.iter().map(|&i| self.raster.centre(i)).collect();
         points[0] = a;
         *points.last_mut().expect("not empty") = b;
         // What the grid path costs from its start to each point (the first and last steps
@@ -394,8 +400,7 @@ impl ReachabilityGrid {
 /// is a [`ReachabilityGrid`]'s for the same area and resolution.
 #[derive(Clone, Debug)]
 pub struct ClearanceField {
-    width: usize,
-    height: usize,
+    raster: Raster,
     distance: Vec<f32>,
 }
 
@@ -403,37 +408,24 @@ impl ClearanceField {
     /// Measures `area` of `world` at `resolution`, exactly from each obstacle's shape (and from
     /// the map's blocked cells where the world has a map), each distance capped at `cap`.
     pub fn new(world: &World, area: Rect, resolution: f32, cap: f32) -> Self {
-        let size = area.size();
-        let width = ((size.x / resolution).ceil() as usize).max(1);
-        let height = ((size.y / resolution).ceil() as usize).max(1);
-        let mut distance = vec![cap; width * height];
-        let centre =
-            |ix: usize, iy: usize| area.min + Vec2::new((ix as f32 + 0.5) * resolution, (iy as f32 + 0.5) * resolution);
+        let raster = Raster::new(area, resolution);
+        let mut distance = vec![cap; raster.len()];
         for o in world.obstacles() {
-            let aabb = o.shape.compute_aabb(&o.pose);
-            let (bmin, bmax) = (Vec2::new(aabb.mins.x, aabb.mins.y), Vec2::new(aabb.maxs.x, aabb.maxs.y));
-            let lo = ((bmin - Vec2::splat(cap) - area.min) / resolution).floor();
-            let hi = ((bmax + Vec2::splat(cap) - area.min) / resolution).ceil();
-            let (x0, x1) = (lo.x.max(0.0) as usize, (hi.x.max(0.0) as usize).min(width));
-            let (y0, y1) = (lo.y.max(0.0) as usize, (hi.y.max(0.0) as usize).min(height));
-            for iy in y0..y1 {
-                for ix in x0..x1 {
-                    let d = &mut distance[iy * width + ix];
-                    *d = d.min(o.primitive.signed_distance(centre(ix, iy)).max(0.0));
+            let (xs, ys) = raster.near(o, cap);
+            for iy in ys {
+                for i in xs.clone().map(|ix| iy * raster.width + ix) {
+                    distance[i] = distance[i].min(o.primitive.signed_distance(raster.centre(i)).max(0.0));
                 }
             }
         }
         if let Some(grid) = world.grid() {
-            for iy in 0..height {
-                for ix in 0..width {
-                    let d = &mut distance[iy * width + ix];
-                    if !grid.is_clear(centre(ix, iy), *d) {
-                        *d = d.min(grid.clearance(centre(ix, iy)));
-                    }
+            for (i, d) in distance.iter_mut().enumerate() {
+                if !grid.is_clear(raster.centre(i), *d) {
+                    *d = d.min(grid.clearance(raster.centre(i)));
                 }
             }
         }
-        Self { width, height, distance }
+        Self { raster, distance }
     }
 }
 
@@ -632,7 +624,7 @@ mod tests {
             ],
         );
         let f = ClearanceField::new(&w, area, 0.05, 0.6);
-        assert_eq!((f.width, f.height), (80, 80));
+        assert_eq!((f.raster.width, f.raster.height), (80, 80));
         for (i, d) in f.distance.iter().enumerate() {
             let c = area.min + Vec2::new(((i % 80) as f32 + 0.5) * 0.05, ((i / 80) as f32 + 0.5) * 0.05);
             let want = w.clearance(c).clamp(0.0, 0.6);
