@@ -163,6 +163,11 @@ pub struct GeneratorSpec {
     /// Probability of one small obstacle (0.05–0.25 m) standing on the line just in front of
     /// the goal, so that the goal lies behind it (default 0).
     pub goal_behind: f32,
+    /// Share of the `count` obstacles missing from the map that the global plan is made on
+    /// (default 0): furniture moved since the room was mapped. The plan may run through them,
+    /// so that a plan-following policy learns to leave the plan for what its lidar sees, as
+    /// it must for movers and people, which no map holds.
+    pub unmapped: f32,
     /// Partition walls with doorways (none by default).
     pub partitions: Option<PartitionGenSpec>,
     /// L corners and U-shaped dead ends (none by default).
@@ -311,6 +316,7 @@ impl Default for GeneratorSpec {
             people: None,
             on_line: 0.0,
             goal_behind: 0.0,
+            unmapped: 0.0,
             partitions: None,
             concave: None,
             corridors: None,
@@ -341,6 +347,7 @@ impl GeneratorSpec {
         g.count = scale_count(g.count, d);
         g.on_line *= d;
         g.goal_behind *= d;
+        g.unmapped *= d;
         if let Some(p) = &mut g.partitions {
             p.probability *= d;
             p.staggered *= d;
@@ -488,6 +495,7 @@ impl Validate for ScenarioSpec {
             check_range("procedural.min_clearance", g.min_clearance, 0.0, 100.0)?;
             check_range("procedural.on_line", g.on_line, 0.0, 1.0)?;
             check_range("procedural.goal_behind", g.goal_behind, 0.0, 1.0)?;
+            check_range("procedural.unmapped", g.unmapped, 0.0, 1.0)?;
             if let Some(p) = &g.partitions {
                 check_count("procedural.partitions.count", p.count, 4)?;
                 check_interval("procedural.partitions.door", p.door, 0.1, 100.0)?;
@@ -614,6 +622,9 @@ pub struct EpisodeSetup {
     pub goal_velocity: Vec2,
     /// Where the robot can drive in this world (for the shortest path that SPL needs).
     pub reach: Arc<ReachabilityGrid>,
+    /// The world as its map knows it, with the free space in it, when generated obstacles are
+    /// missing from the map (`procedural.unmapped`): the global plan is made on it.
+    pub map: Option<(Arc<World>, Arc<ReachabilityGrid>)>,
 }
 
 /// Why no episode could be drawn.
@@ -853,12 +864,12 @@ impl Scenario {
                 },
                 None => None,
             };
-            let (world, grid) = match &self.fixed_world {
-                Some((w, g)) => (w.clone(), g.clone()),
+            let (world, grid, map) = match &self.fixed_world {
+                Some((w, g)) => (w.clone(), g.clone(), None),
                 None => {
-                    let w = self.generate_around(rng, anchors.map(|(s, g)| (s.position(), g)));
+                    let (w, map) = self.generate_with_map(rng, anchors.map(|(s, g)| (s.position(), g)));
                     let g = ReachabilityGrid::new(&w, self.area, self.clearance, GRID_RESOLUTION);
-                    (Arc::new(w), Arc::new(g))
+                    (Arc::new(w), Arc::new(g), map)
                 }
             };
             let placed = match (&self.cells, anchors) {
@@ -892,7 +903,13 @@ impl Scenario {
                         }
                         None => Vec2::ZERO,
                     };
-                    return Ok(EpisodeSetup { world, start, goal, movers, people, goal_velocity, reach: grid });
+                    // The map's free space only once the episode is drawn (it is a superset
+                    // of the world's, so start and goal are connected in it too).
+                    let map = map.map(|m| {
+                        let g = ReachabilityGrid::new(&m, self.area, self.clearance, GRID_RESOLUTION);
+                        (Arc::new(m), Arc::new(g))
+                    });
+                    return Ok(EpisodeSetup { world, start, goal, movers, people, goal_velocity, reach: grid, map });
                 }
                 Err(r) => reason = r,
             }
@@ -1182,10 +1199,18 @@ impl Scenario {
     /// obstacles near it and one just in front of the goal, all keeping the start's and the
     /// goal's clearance; then the other obstacles anywhere.
     pub fn generate_around<R: rand::Rng>(&self, rng: &mut R, anchors: Option<(Vec2, Vec2)>) -> World {
+        self.generate_with_map(rng, anchors).0
+    }
+
+    /// [`Self::generate_around`], and the world as its map knows it when some generated
+    /// obstacles are left off the map ([`GeneratorSpec::unmapped`]).
+    fn generate_with_map<R: rand::Rng>(&self, rng: &mut R, anchors: Option<(Vec2, Vec2)>) -> (World, Option<World>) {
         let mut obstacles = self.fixed.clone();
         let Some(g) = &self.spec.procedural else {
-            return self.build_world(obstacles);
+            return (self.build_world(obstacles), None);
         };
+        // Indices of the obstacles the map lacks.
+        let mut unmapped = Vec::new();
         if let Some(b) = &g.barn {
             // A spec that validates draws a world within a few hundred tries at worst; were
             // it to fail, the episode runs in the containment walls alone.
@@ -1286,12 +1311,19 @@ impl Scenario {
                 // degenerate one (rounding) is simply redrawn.
                 if let Ok(o) = Obstacle::new(spec) {
                     placed.push((c, size));
+                    if g.unmapped > 0.0 && rng.random_range(0.0..1.0f32) < g.unmapped {
+                        unmapped.push(obstacles.len());
+                    }
                     obstacles.push(o);
                     break;
                 }
             }
         }
-        self.build_world(obstacles)
+        let map = (!unmapped.is_empty()).then(|| {
+            let mapped = obstacles.iter().enumerate().filter(|(i, _)| !unmapped.contains(i)).map(|(_, o)| o.clone());
+            self.build_world(mapped.collect())
+        });
+        (self.build_world(obstacles), map)
     }
 }
 
@@ -1586,5 +1618,41 @@ mod tests {
         let spec: ScenarioSpec = crate::config::from_yaml_str("split.yaml", yaml).unwrap();
         let err = Scenario::new(spec, 0.2, 0.0).unwrap_err().to_string();
         assert!(err.contains("<scenario split>") && err.contains("no goal reachable"), "{err}");
+    }
+
+    /// Obstacles left off the map stand in the world but not in the map the plan is made on:
+    /// the plan runs through them.
+    #[test]
+    fn unmapped_obstacles_are_in_the_world_and_not_in_the_plan() {
+        let spec = |unmapped: f32| {
+            let yaml = format!(
+                "name: t\narena: {{size: [8, 8]}}\nprocedural:\n  count: [2, 2]\n  size: [0.2, 0.4]\n  \
+                 min_clearance: 0.6\n  on_line: 1.0\n  unmapped: {unmapped}\nstart_goal_distance: [5, 7]\n"
+            );
+            Scenario::new(crate::config::from_yaml_str("t.yaml", &yaml).unwrap(), 0.2, 0.0).unwrap()
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        let (s, walls) = (spec(1.0), 4);
+        let mut through = 0;
+        for _ in 0..20 {
+            let e = s.sample(&mut rng).unwrap();
+            assert_eq!(e.world.obstacles().len(), walls + 2);
+            let (map, reach) = e.map.as_ref().expect("a map without the generated obstacles");
+            assert_eq!(map.obstacles().len(), walls);
+            let plan = s.global_plan(map, reach, e.start.position(), e.goal).unwrap();
+            // An open room on the map: the plan goes nearly straight, whatever stands on it.
+            let length: f32 = plan.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+            assert!(length < 1.05 * (e.goal - e.start.position()).length(), "{plan:?}");
+            let blocked = plan
+                .windows(2)
+                .any(|w| (0..=100).any(|k| e.world.clearance(w[0].lerp(w[1], k as f32 / 100.0)) < s.clearance()));
+            through += blocked as usize;
+        }
+        // Measured over seeds 1-6: 20 of 20 plans pass within the clearance of an obstacle
+        // (both are drawn within 0.5 m of the line).
+        assert!(through >= 15, "{through}/20 plans through an unmapped obstacle");
+        // With none unmapped there is no second map, and the draws are the same as before.
+        let e = spec(0.0).sample(&mut rand_pcg::Pcg64Mcg::seed_from_u64(3)).unwrap();
+        assert!(e.map.is_none());
     }
 }

@@ -676,9 +676,10 @@ impl NavEnv {
         self.angular_acceleration_sum = 0.0;
         // A goal that moves has no fixed plan; it is steered to directly.
         let plan = match &self.setup.task.plan {
-            Some(_) if ep.goal_velocity == Vec2::ZERO => {
-                scenario.global_plan(&self.world, &ep.reach, self.start, ep.goal)
-            }
+            Some(_) if ep.goal_velocity == Vec2::ZERO => match &ep.map {
+                Some((map, reach)) => scenario.global_plan(map, reach, self.start, ep.goal),
+                None => scenario.global_plan(&self.world, &ep.reach, self.start, ep.goal),
+            },
             _ => None,
         };
         // Without a plan nothing is allocated (a fixed world's reset allocates nothing).
