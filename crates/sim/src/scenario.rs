@@ -1533,9 +1533,12 @@ mod tests {
                 Some(CorridorGenSpec { probability: 1.0, width: [1.0, 1.6], ..Default::default() });
             let s = Scenario::new(spec.at_difficulty(d), 0.25, 0.2).unwrap();
             let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
-            let (mut inside, mut turning, n) = (0, 0, 100);
-            for _ in 0..n {
-                let e = s.sample(&mut rng).unwrap();
+            let (mut inside, mut turning, mut n) = (0, 0, 0);
+            for _ in 0..100 {
+                // With a corridor in every scene about seven worlds in eight cut the start
+                // from the goal; a draw gives up after 50 (measured: 3 in 1,000 draws).
+                let Ok(e) = s.sample(&mut rng) else { continue };
+                n += 1;
                 let (a, b) = (e.start.position(), e.goal);
                 assert!(e.reach.connected(a, b));
                 inside += (e.world.clearance(a) <= 0.8 + 1e-3) as usize;
@@ -1545,6 +1548,7 @@ mod tests {
             (inside, turning, n)
         };
         let (inside, turning, n) = counts(4, 1.0);
+        assert!(n >= 95, "{n} of 100 draws gave an episode");
         // Measured over seeds 1-6: inside 100 of 100, turning 23-42 (straight corridors and
         // corners the path cuts inside the width are the rest), 0-1 at difficulty 0.
         assert_eq!(inside, n, "the start is in a corridor");
