@@ -622,9 +622,10 @@ pub struct EpisodeSetup {
     pub goal_velocity: Vec2,
     /// Where the robot can drive in this world (for the shortest path that SPL needs).
     pub reach: Arc<ReachabilityGrid>,
-    /// The world as its map knows it, with the free space in it, when generated obstacles are
-    /// missing from the map (`procedural.unmapped`): the global plan is made on it.
-    pub map: Option<(Arc<World>, Arc<ReachabilityGrid>)>,
+    /// The world as its map knows it, when generated obstacles are missing from the map
+    /// (`procedural.unmapped`): the global plan is made on it
+    /// ([`Scenario::global_plan_on_map`]).
+    pub map: Option<Arc<World>>,
 }
 
 /// Why no episode could be drawn.
@@ -827,6 +828,14 @@ impl Scenario {
         reach.cheapest_path(field, &cost, start, goal)
     }
 
+    /// [`Self::global_plan`] on a map that lacks some of the world's obstacles
+    /// ([`EpisodeSetup::map`]); its free space is measured here, so that only a task that
+    /// plans pays for it (it is a superset of the world's: start and goal are connected in it).
+    pub fn global_plan_on_map(&self, map: &World, start: Vec2, goal: Vec2) -> Option<Vec<Vec2>> {
+        let reach = ReachabilityGrid::new(map, self.area, self.clearance, GRID_RESOLUTION);
+        self.global_plan(map, &reach, start, goal)
+    }
+
     /// The area starts, goals and generated obstacles are drawn in.
     pub fn area(&self) -> Rect {
         self.area
@@ -903,12 +912,7 @@ impl Scenario {
                         }
                         None => Vec2::ZERO,
                     };
-                    // The map's free space only once the episode is drawn (it is a superset
-                    // of the world's, so start and goal are connected in it too).
-                    let map = map.map(|m| {
-                        let g = ReachabilityGrid::new(&m, self.area, self.clearance, GRID_RESOLUTION);
-                        (Arc::new(m), Arc::new(g))
-                    });
+                    let map = map.map(Arc::new);
                     return Ok(EpisodeSetup { world, start, goal, movers, people, goal_velocity, reach: grid, map });
                 }
                 Err(r) => reason = r,
@@ -1641,9 +1645,9 @@ mod tests {
         for _ in 0..20 {
             let e = s.sample(&mut rng).unwrap();
             assert_eq!(e.world.obstacles().len(), walls + 2);
-            let (map, reach) = e.map.as_ref().expect("a map without the generated obstacles");
+            let map = e.map.as_ref().expect("a map without the generated obstacles");
             assert_eq!(map.obstacles().len(), walls);
-            let plan = s.global_plan(map, reach, e.start.position(), e.goal).unwrap();
+            let plan = s.global_plan_on_map(map, e.start.position(), e.goal).unwrap();
             // An open room on the map: the plan goes nearly straight, whatever stands on it.
             let length: f32 = plan.windows(2).map(|w| (w[1] - w[0]).length()).sum();
             assert!(length < 1.05 * (e.goal - e.start.position()).length(), "{plan:?}");

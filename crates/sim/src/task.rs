@@ -677,7 +677,7 @@ impl NavEnv {
         // A goal that moves has no fixed plan; it is steered to directly.
         let plan = match &self.setup.task.plan {
             Some(_) if ep.goal_velocity == Vec2::ZERO => match &ep.map {
-                Some((map, reach)) => scenario.global_plan(map, reach, self.start, ep.goal),
+                Some(map) => scenario.global_plan_on_map(map, self.start, ep.goal),
                 None => scenario.global_plan(&self.world, &ep.reach, self.start, ep.goal),
             },
             _ => None,
