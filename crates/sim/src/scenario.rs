@@ -662,8 +662,11 @@ pub struct Scenario {
 const GRID_RESOLUTION: f32 = 0.05;
 /// Placement attempts per world before a generated world is redrawn.
 const PLACEMENT_TRIES: usize = 200;
-/// Worlds drawn before giving up.
-const WORLD_TRIES: usize = 50;
+/// Worlds drawn before giving up. Generous: a failed draw stops a training run, and the
+/// draws that succeed earlier are the same whatever the limit (with a corridor in every
+/// scene about seven worlds in eight cut the start from the goal: 50 tries failed 3 draws
+/// in 1,000, 200 tries about one in 10^11).
+const WORLD_TRIES: usize = 200;
 
 impl Scenario {
     /// Compiles `spec` for a robot that needs `clearance` metres of free space around its
@@ -1540,8 +1543,8 @@ mod tests {
             let (mut inside, mut turning, mut n) = (0, 0, 0);
             for _ in 0..100 {
                 // With a corridor in every scene about seven worlds in eight cut the start
-                // from the goal; a draw gives up after 50 (measured: 3 in 1,000 draws).
-                let Ok(e) = s.sample(&mut rng) else { continue };
+                // from the goal; a draw keeps drawing worlds until one connects them.
+                let e = s.sample(&mut rng).expect("a draw finds a world within WORLD_TRIES");
                 n += 1;
                 let (a, b) = (e.start.position(), e.goal);
                 assert!(e.reach.connected(a, b));
@@ -1552,7 +1555,6 @@ mod tests {
             (inside, turning, n)
         };
         let (inside, turning, n) = counts(4, 1.0);
-        assert!(n >= 95, "{n} of 100 draws gave an episode");
         // Measured over seeds 1-6: inside 100 of 100, turning 23-42 (straight corridors and
         // corners the path cuts inside the width are the rest), 0-1 at difficulty 0.
         assert_eq!(inside, n, "the start is in a corridor");
