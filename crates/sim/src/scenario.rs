@@ -174,6 +174,9 @@ pub struct GeneratorSpec {
     pub concave: Option<ConcaveGenSpec>,
     /// Corridors from the start to the goal, straight, L- or Z-shaped (none by default).
     pub corridors: Option<CorridorGenSpec>,
+    /// A patch of thin posts across the start–goal line: table and chair legs, stands, a
+    /// forest of poles (none by default).
+    pub forest: Option<ForestGenSpec>,
     /// A BARN-like field drawn by the BARN dataset's cellular automaton, with the challenge's
     /// containment walls, in the BARN worlds' coordinates (start (-2.25, 3), goal
     /// (-2.25, 13)); see [`crate::barn::generate`]. None by default.
@@ -201,6 +204,31 @@ pub struct CorridorGenSpec {
 impl Default for CorridorGenSpec {
     fn default() -> Self {
         Self { probability: 1.0, width: [0.9, 1.5], thickness: [0.05, 0.2], overrun: [0.2, 0.8] }
+    }
+}
+
+/// A patch of thin posts (table and chair legs, stands, poles) on a jittered grid, centred on
+/// the start–goal line and turned to a random angle: returns a few centimetres wide that a
+/// sparse scan catches late, in numbers, with gaps the robot fits through. Posts keep off the
+/// start and the goal; a scene with a corridor has no patch.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ForestGenSpec {
+    /// Probability that a scene has a patch (default 1).
+    pub probability: f32,
+    /// Post radius range (m, default [0.015, 0.05]).
+    pub radius: [f32; 2],
+    /// Grid spacing range (m, default [0.8, 1.3]).
+    pub spacing: [f32; 2],
+    /// Side length range of the patch, each side drawn apart (m, default [1.5, 3.5]).
+    pub size: [f32; 2],
+    /// How far a post may stray from its grid point, as a share of the spacing (default 0.2).
+    pub jitter: f32,
+}
+
+impl Default for ForestGenSpec {
+    fn default() -> Self {
+        Self { probability: 1.0, radius: [0.015, 0.05], spacing: [0.8, 1.3], size: [1.5, 3.5], jitter: 0.2 }
     }
 }
 
@@ -320,6 +348,7 @@ impl Default for GeneratorSpec {
             partitions: None,
             concave: None,
             corridors: None,
+            forest: None,
             barn: None,
         }
     }
@@ -362,6 +391,9 @@ impl GeneratorSpec {
         if let Some(b) = &mut g.barn {
             *b = b.at_difficulty(d);
         }
+        if let Some(f) = &mut g.forest {
+            f.probability *= d;
+        }
         if let Some(c) = &mut g.corridors {
             // Narrow corridors are the hard ones.
             c.probability *= d;
@@ -385,6 +417,7 @@ impl GeneratorSpec {
             || self.partitions.is_some()
             || self.concave.is_some()
             || self.corridors.is_some()
+            || self.forest.is_some()
     }
 }
 
@@ -516,6 +549,13 @@ impl Validate for ScenarioSpec {
                 check_interval("procedural.corridors.width", c.width, 0.3, 100.0)?;
                 check_interval("procedural.corridors.thickness", c.thickness, 0.0, 10.0)?;
                 check_interval("procedural.corridors.overrun", c.overrun, 0.0, 100.0)?;
+            }
+            if let Some(f) = &g.forest {
+                check_range("procedural.forest.probability", f.probability, 0.0, 1.0)?;
+                check_interval("procedural.forest.radius", f.radius, 0.005, 1.0)?;
+                check_interval("procedural.forest.spacing", f.spacing, 0.2, 100.0)?;
+                check_interval("procedural.forest.size", f.size, 0.0, 100.0)?;
+                check_range("procedural.forest.jitter", f.jitter, 0.0, 0.5)?;
             }
         }
         for (key, p) in [("start", &self.start), ("goal", &self.goal)] {
@@ -1249,6 +1289,21 @@ impl Scenario {
         };
         if let Some((s, q)) = anchors.filter(|_| !corridor) {
             self.structures(g, s, q, rng, &mut obstacles, &mut placed);
+            if let Some(f) = g.forest.as_ref().filter(|f| rng.random_range(0.0..1.0f32) < f.probability) {
+                for (c, r) in forest_posts(f, s, q, rng) {
+                    let inside = c.cmpge(self.area.min + Vec2::splat(r + 0.05)).all()
+                        && c.cmple(self.area.max - Vec2::splat(r + 0.05)).all();
+                    let Ok(o) = Obstacle::new(ObstacleSpec::Circle { center: c.into(), radius: r }) else { continue };
+                    if !(inside && keep_out(c, r)) {
+                        continue;
+                    }
+                    placed.push((c, r));
+                    if g.unmapped > 0.0 && rng.random_range(0.0..1.0f32) < g.unmapped {
+                        unmapped.push(obstacles.len());
+                    }
+                    obstacles.push(o);
+                }
+            }
         }
         let count = rng.random_range(g.count[0]..=g.count[1]);
         for i in 0..count {
@@ -1332,6 +1387,29 @@ impl Scenario {
         });
         (self.build_world(obstacles), map)
     }
+}
+
+/// The posts of a patch ([`ForestGenSpec`]) across the line from `s` to `q`: centre and radius
+/// of each, before the checks against the arena, the start and the goal.
+fn forest_posts<R: rand::Rng>(f: &ForestGenSpec, s: Vec2, q: Vec2, rng: &mut R) -> Vec<(Vec2, f32)> {
+    let centre = s + (q - s) * rng.random_range(0.3..=0.7f32);
+    let axis = Vec2::from_angle(rng.random_range(-PI..PI));
+    let spacing = rng.random_range(f.spacing[0]..=f.spacing[1]);
+    let side = |rng: &mut R| rng.random_range(f.size[0]..=f.size[1]);
+    let (w, h) = (side(rng), side(rng));
+    // Grid points across the patch, centred on it.
+    let (nx, ny) = ((w / spacing).floor() as i32 + 1, (h / spacing).floor() as i32 + 1);
+    let mut posts = Vec::with_capacity((nx * ny) as usize);
+    for i in 0..nx {
+        for j in 0..ny {
+            let local =
+                Vec2::new((i as f32 - 0.5 * (nx - 1) as f32) * spacing, (j as f32 - 0.5 * (ny - 1) as f32) * spacing);
+            let stray =
+                Vec2::new(rng.random_range(-1.0..=1.0f32), rng.random_range(-1.0..=1.0f32)) * f.jitter * spacing;
+            posts.push((centre + axis.rotate(local + stray), rng.random_range(f.radius[0]..=f.radius[1])));
+        }
+    }
+    posts
 }
 
 /// The walls of a corridor from `s` to `q` ([`CorridorGenSpec`]): the route runs straight when
@@ -1664,5 +1742,40 @@ mod tests {
         // With none unmapped there is no second map, and the draws are the same as before.
         let e = spec(0.0).sample(&mut rand_pcg::Pcg64Mcg::seed_from_u64(3)).unwrap();
         assert!(e.map.is_none());
+    }
+
+    /// A forest: thin posts (the spec's radii) spread across the start–goal line with gaps
+    /// the robot passes, none at difficulty 0, and the start still connected to the goal.
+    #[test]
+    fn forests_put_thin_posts_across_the_line() {
+        let yaml = "name: t\narena: {size: [8, 8]}\nprocedural:\n  count: [1, 1]\n  size: [0.3, 0.4]\n  \
+                    forest: {radius: [0.02, 0.04], spacing: [0.9, 1.1], size: [2.0, 3.0]}\n\
+                    start_goal_distance: [5, 7]\n";
+        let spec: ScenarioSpec = crate::config::from_yaml_str("t.yaml", yaml).unwrap();
+        let s = Scenario::new(spec.clone(), 0.2, 0.0).unwrap();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+        let (mut posts, mut near_line) = (0, 0);
+        for _ in 0..20 {
+            let e = s.sample(&mut rng).unwrap();
+            let (a, b) = (e.start.position(), e.goal);
+            assert!(e.reach.connected(a, b));
+            for o in e.world.obstacles().iter().filter(|o| o.bound_radius <= 0.04 + 1e-4) {
+                assert!(o.bound_radius >= 0.02 - 1e-4);
+                posts += 1;
+                // Distance from the post to the segment start-goal.
+                let t = ((o.bound_center - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                near_line += ((a.lerp(b, t) - o.bound_center).length() < 1.0) as usize;
+            }
+        }
+        // Measured over seeds 1-6: 8.7-10 posts a scene (grids of 3 x 3 to 4 x 4 less those the
+        // arena, the start and the goal keep out), 69-72% of them within 1 m of the line.
+        assert!(posts >= 20 * 5, "{posts} posts in 20 scenes");
+        assert!(near_line * 3 >= posts, "{near_line} of {posts} posts within 1 m of the line");
+        // At difficulty 0 no scene has a forest.
+        let easy = Scenario::new(spec.at_difficulty(0.0), 0.2, 0.0).unwrap();
+        for _ in 0..20 {
+            let e = easy.sample(&mut rng).unwrap();
+            assert!(e.world.obstacles().iter().all(|o| o.bound_radius > 0.04 + 1e-4));
+        }
     }
 }
