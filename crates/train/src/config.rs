@@ -81,6 +81,11 @@ pub struct PpoConfig {
     pub entropy_coef: f32,
     /// Weight of the penalty on action means beyond ±1.1.
     pub bounds_loss_coef: f32,
+    /// Ceiling on the policy's learned log standard deviations, applied after every update
+    /// step (absent: none). With actions clipped to ±1 the surrogate can gain from ever wider
+    /// noise (samples beyond a bound act as the bound), and the policy then trains on
+    /// near-random commands while it is judged on its mean.
+    pub max_log_std: Option<f32>,
     /// Running observation normalisation.
     pub normalize_input: bool,
     /// Running value (return) normalisation.
@@ -155,6 +160,7 @@ impl Default for PpoConfig {
             critic_coef: 2.0,
             entropy_coef: 0.0,
             bounds_loss_coef: 0.0001,
+            max_log_std: None,
             normalize_input: true,
             normalize_value: true,
             normalize_advantage: true,
@@ -438,6 +444,12 @@ impl Validate for RunConfig {
         check_range("train.critic_coef", t.critic_coef, 0.0, 1000.0)?;
         check_range("train.entropy_coef", t.entropy_coef, -1.0, 1.0)?;
         check_range("train.bounds_loss_coef", t.bounds_loss_coef, 0.0, 1000.0)?;
+        if let Some(m) = t.max_log_std {
+            check_range("train.max_log_std", m, -5.0, 2.0)?;
+            if self.network.init_log_std > m {
+                return Err(Invalid::new("network.init_log_std", "at most train.max_log_std"));
+            }
+        }
         if let Some(r) = self.eval.stop_at_success {
             check_range("eval.stop_at_success", r, 0.0, 1.0)?;
             if self.eval.every == 0 {

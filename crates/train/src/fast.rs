@@ -408,6 +408,12 @@ impl FastNet {
         &self.params[self.log_std..self.log_std + self.act_dim]
     }
 
+    /// Caps every log standard deviation at `max`.
+    pub fn cap_log_std(&mut self, max: f32) {
+        let at = self.log_std;
+        self.params[at..at + self.act_dim].iter_mut().for_each(|l| *l = l.min(max));
+    }
+
     /// Adam's state (for checkpoints).
     pub fn adam(&self) -> &AdamState {
         &self.adam

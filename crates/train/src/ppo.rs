@@ -555,6 +555,9 @@ impl Ppo {
                         teacher: &teacher,
                     };
                     let r = fast.step(&batch, &loss_cfg, lr, max_norm);
+                    if let Some(max) = self.cfg.max_log_std {
+                        fast.cap_log_std(max);
+                    }
                     (r.mu, ls, r.ratios, [r.policy_loss, r.value_loss, r.entropy, r.teacher_loss])
                 } else {
                     let dev = self.device.clone();
@@ -597,7 +600,17 @@ impl Ppo {
                     // The optimiser takes the network by value; moving it out (rather than
                     // cloning) lets burn update the parameters in place.
                     let model = self.model.take().expect("the network is only absent during a step");
-                    self.model = Some(self.optim.step(lr as f64, model, grads));
+                    let mut model = self.optim.step(lr as f64, model, grads);
+                    if let Some(max) = self.cfg.max_log_std {
+                        // A fresh leaf, so that the clamp does not enter the next step's graph.
+                        model.log_std = model.log_std.map(|t| {
+                            let tracked = t.is_require_grad();
+                            let data = t.clone().clamp_max(max).into_data();
+                            let capped = Tensor::<1>::from_data(data, &t.device());
+                            if tracked { capped.require_grad() } else { capped }
+                        });
+                    }
+                    self.model = Some(model);
                     // Values read after the backward pass (burn's tape allows one backward,
                     // and detach() would cut the graph the loss needs).
                     let losses = [
@@ -683,5 +696,56 @@ impl Ppo {
         }
         let (mu, _, next) = self.infer(net, x, state);
         (mu, next)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Learner;
+
+    /// An epoch whose far-out samples (the actions at ±1, 2.7 σ from a mean near 0) did well
+    /// and whose samples at the mean did badly: the update widens the noise, up to
+    /// `train.max_log_std` when it is set, on either learner.
+    fn log_std_after_update(learner: Learner, max_log_std: Option<f32>) -> Vec<f32> {
+        let cfg = PpoConfig {
+            num_actors: 8,
+            horizon_length: 16,
+            minibatch_size: 64,
+            mini_epochs: 4,
+            learning_rate: 0.01,
+            lr_schedule: LrSchedule::Linear,
+            max_log_std,
+            learner,
+            threads: 1,
+            ..Default::default()
+        };
+        let network = NetworkConfig { hidden: vec![8], init_log_std: -1.0, ..Default::default() };
+        let mut ppo = Ppo::new(&cfg, &network, 3, 2, rlnav_policy::training_device(), 1);
+        let b = &mut ppo.buffer;
+        for i in 0..b.log_probs.len() {
+            let far = i % 2 == 0;
+            let a = if far { if i % 4 == 0 { 1.0 } else { -1.0 } } else { 0.0 };
+            b.obs[i * 3..(i + 1) * 3].copy_from_slice(&[0.1 * (i % 5) as f32, 0.2, -0.3]);
+            b.actions[i * 2..(i + 1) * 2].copy_from_slice(&[a, -a]);
+            // An old log-probability far above the new one keeps every ratio below the clip
+            // range, where the surrogate of a good action is not clipped.
+            b.log_probs[i] = 10.0;
+            b.advantages[i] = if far { 1.0 } else { -1.0 };
+            b.returns[i] = 0.0;
+            b.values[i] = 0.0;
+        }
+        ppo.update();
+        to_vec(ppo.model().log_std.val())
+    }
+
+    #[test]
+    fn max_log_std_caps_the_noise_on_both_learners() {
+        for learner in [Learner::Fast, Learner::Burn] {
+            let free = log_std_after_update(learner, None);
+            assert!(free.iter().all(|&l| l > -0.95), "{learner:?}: the update widens the noise: {free:?}");
+            let capped = log_std_after_update(learner, Some(-1.0));
+            assert!(capped.iter().all(|&l| l <= -1.0 + 1e-6), "{learner:?}: capped at -1: {capped:?}");
+        }
     }
 }
