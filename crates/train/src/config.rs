@@ -82,10 +82,12 @@ pub struct PpoConfig {
     /// Weight of the penalty on action means beyond ±1.1.
     pub bounds_loss_coef: f32,
     /// Ceiling on the policy's learned log standard deviations, applied after every update
-    /// step (absent: none). With actions clipped to ±1 the surrogate can gain from ever wider
-    /// noise (samples beyond a bound act as the bound), and the policy then trains on
-    /// near-random commands while it is judged on its mean.
-    pub max_log_std: Option<f32>,
+    /// step (absent: none): a number, or `[start, end]` moving linearly from `start` at the
+    /// first epoch to `end` at the last (noise annealing); an `init_log_std` above the start is
+    /// lowered to it. With actions clipped to ±1 the
+    /// surrogate can gain from ever wider noise (samples beyond a bound act as the bound),
+    /// and the policy then trains on near-random commands while it is judged on its mean.
+    pub max_log_std: Option<LogStdCeiling>,
     /// Running observation normalisation.
     pub normalize_input: bool,
     /// Running value (return) normalisation.
@@ -103,6 +105,34 @@ pub struct PpoConfig {
     /// A classical controller whose commands the policy is also taught to imitate early in
     /// training (kickstarting; absent: PPO alone).
     pub teacher: Option<TeacherConfig>,
+}
+
+/// `train.max_log_std`: a fixed ceiling or one that moves linearly over the run.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum LogStdCeiling {
+    /// The same ceiling throughout.
+    Fixed(f32),
+    /// `[start, end]`: from `start` at epoch 0 to `end` at the last epoch.
+    Linear([f32; 2]),
+}
+
+impl LogStdCeiling {
+    /// The ceiling at `epoch` of `max_epochs`.
+    pub fn at(&self, epoch: usize, max_epochs: usize) -> f32 {
+        match *self {
+            Self::Fixed(c) => c,
+            Self::Linear([a, b]) => {
+                let f = epoch as f32 / max_epochs.saturating_sub(1).max(1) as f32;
+                a + (b - a) * f.min(1.0)
+            }
+        }
+    }
+
+    /// The ceiling at the first epoch.
+    pub fn start(&self) -> f32 {
+        self.at(0, 1)
+    }
 }
 
 /// Kickstarting from a classical controller (Schmitt et al. 2018, "Kickstarting deep
@@ -445,9 +475,12 @@ impl Validate for RunConfig {
         check_range("train.entropy_coef", t.entropy_coef, -1.0, 1.0)?;
         check_range("train.bounds_loss_coef", t.bounds_loss_coef, 0.0, 1000.0)?;
         if let Some(m) = t.max_log_std {
-            check_range("train.max_log_std", m, -5.0, 2.0)?;
-            if self.network.init_log_std > m {
-                return Err(Invalid::new("network.init_log_std", "at most train.max_log_std"));
+            let ends = match m {
+                LogStdCeiling::Fixed(c) => [c, c],
+                LogStdCeiling::Linear(r) => r,
+            };
+            for c in ends {
+                check_range("train.max_log_std", c, -5.0, 2.0)?;
             }
         }
         if let Some(r) = self.eval.stop_at_success {
@@ -561,6 +594,21 @@ mod tests {
         assert_eq!(c.train.max_epochs, 3);
         assert_eq!(c.task.reward.goal, 40.0);
         assert_eq!(c.network.hidden, vec![32, 32]);
+    }
+
+    /// `train.max_log_std` reads as a number or a `[start, end]` pair; the pair moves
+    /// linearly over the run; a bad value names the key.
+    #[test]
+    fn log_std_ceilings_parse_and_move() {
+        let c = load_run_config(None, &["train.max_log_std=-1".into()]).unwrap();
+        assert_eq!(c.train.max_log_std, Some(LogStdCeiling::Fixed(-1.0)));
+        let set = ["train.max_log_std=[0.2, -1.2]".into(), "train.max_epochs=11".into()];
+        let c = load_run_config(None, &set).unwrap();
+        let ceiling = c.train.max_log_std.unwrap();
+        assert_eq!((ceiling.at(0, 11), ceiling.at(10, 11)), (0.2, -1.2));
+        assert!((ceiling.at(5, 11) + 0.5).abs() < 1e-6);
+        let e = load_run_config(None, &["train.max_log_std=[0, 9]".into()]).unwrap_err().to_string();
+        assert!(e.contains("train.max_log_std"), "{e}");
     }
 
     #[test]

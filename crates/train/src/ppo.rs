@@ -75,6 +75,8 @@ pub struct Ppo {
     /// Kickstarting: the teacher and the imitation weight of this epoch.
     teacher: Option<Teacher>,
     teacher_weight: f32,
+    /// This epoch's ceiling on the log standard deviations (`train.max_log_std`).
+    log_std_ceiling: Option<f32>,
 }
 
 /// Gradient-norm clipping over all parameters together (burn's own clipping is per tensor).
@@ -191,6 +193,17 @@ pub(crate) fn burn_loss(
     BurnLoss { total, policy, value, entropy, ratio, teacher }
 }
 
+/// `log_std` capped at `max`, as a fresh leaf (so that the clamp does not enter the next
+/// step's graph).
+fn cap_log_std(log_std: Param<Tensor<1>>, max: f32) -> Param<Tensor<1>> {
+    log_std.map(|t| {
+        let tracked = t.is_require_grad();
+        let data = t.clone().clamp_max(max).into_data();
+        let capped = Tensor::<1>::from_data(data, &t.device());
+        if tracked { capped.require_grad() } else { capped }
+    })
+}
+
 impl Ppo {
     /// A new learner for observations of `obs_dim` and `act_dim` actions, on `plain` (with
     /// gradients on `plain.autodiff()`).
@@ -203,7 +216,10 @@ impl Ppo {
         seed: u64,
     ) -> Self {
         let device = plain.clone().autodiff();
-        let model = ActorCritic::seeded(network, obs_dim, act_dim, &device, seed);
+        let mut model = ActorCritic::seeded(network, obs_dim, act_dim, &device, seed);
+        if let Some(start) = cfg.max_log_std.map(|c| c.start()) {
+            model.log_std = cap_log_std(model.log_std, start);
+        }
         let units = model.lstm_units();
         let fast = cfg.uses_fast_learner().then(|| FastNet::from_model(&model, cfg.threads));
         Self {
@@ -223,6 +239,7 @@ impl Ppo {
             fast,
             teacher: cfg.teacher.as_ref().map(|t| Teacher::new(t, cfg.num_actors)),
             teacher_weight: 0.0,
+            log_std_ceiling: cfg.max_log_std.map(|c| c.start()),
         }
     }
 
@@ -555,7 +572,7 @@ impl Ppo {
                         teacher: &teacher,
                     };
                     let r = fast.step(&batch, &loss_cfg, lr, max_norm);
-                    if let Some(max) = self.cfg.max_log_std {
+                    if let Some(max) = self.log_std_ceiling {
                         fast.cap_log_std(max);
                     }
                     (r.mu, ls, r.ratios, [r.policy_loss, r.value_loss, r.entropy, r.teacher_loss])
@@ -601,14 +618,8 @@ impl Ppo {
                     // cloning) lets burn update the parameters in place.
                     let model = self.model.take().expect("the network is only absent during a step");
                     let mut model = self.optim.step(lr as f64, model, grads);
-                    if let Some(max) = self.cfg.max_log_std {
-                        // A fresh leaf, so that the clamp does not enter the next step's graph.
-                        model.log_std = model.log_std.map(|t| {
-                            let tracked = t.is_require_grad();
-                            let data = t.clone().clamp_max(max).into_data();
-                            let capped = Tensor::<1>::from_data(data, &t.device());
-                            if tracked { capped.require_grad() } else { capped }
-                        });
+                    if let Some(max) = self.log_std_ceiling {
+                        model.log_std = cap_log_std(model.log_std, max);
                     }
                     self.model = Some(model);
                     // Values read after the backward pass (burn's tape allows one backward,
@@ -668,8 +679,10 @@ impl Ppo {
         stats
     }
 
-    /// Sets the learning rate of the linear schedule for `epoch` of `max_epochs`.
+    /// Sets the learning rate of the linear schedule and the noise ceiling
+    /// (`train.max_log_std`) for `epoch` of `max_epochs`.
     pub fn schedule(&mut self, epoch: usize) {
+        self.log_std_ceiling = self.cfg.max_log_std.map(|c| c.at(epoch, self.cfg.max_epochs));
         if self.cfg.lr_schedule == LrSchedule::Linear {
             let frac = 1.0 - epoch as f32 / self.cfg.max_epochs as f32;
             self.lr = (self.cfg.learning_rate * frac).max(1e-7);
@@ -702,12 +715,12 @@ impl Ppo {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::Learner;
+    use crate::config::{Learner, LogStdCeiling};
 
     /// An epoch whose far-out samples (the actions at ±1, 2.7 σ from a mean near 0) did well
     /// and whose samples at the mean did badly: the update widens the noise, up to
     /// `train.max_log_std` when it is set, on either learner.
-    fn log_std_after_update(learner: Learner, max_log_std: Option<f32>) -> Vec<f32> {
+    fn log_std_after_update(learner: Learner, max_log_std: Option<LogStdCeiling>) -> Vec<f32> {
         let cfg = PpoConfig {
             num_actors: 8,
             horizon_length: 16,
@@ -744,8 +757,15 @@ mod tests {
         for learner in [Learner::Fast, Learner::Burn] {
             let free = log_std_after_update(learner, None);
             assert!(free.iter().all(|&l| l > -0.95), "{learner:?}: the update widens the noise: {free:?}");
-            let capped = log_std_after_update(learner, Some(-1.0));
+            let capped = log_std_after_update(learner, Some(LogStdCeiling::Fixed(-1.0)));
             assert!(capped.iter().all(|&l| l <= -1.0 + 1e-6), "{learner:?}: capped at -1: {capped:?}");
+            // A ceiling that falls from -1 at the first epoch (of 200) holds -1 there.
+            let falling = log_std_after_update(learner, Some(LogStdCeiling::Linear([-1.0, -2.0])));
+            assert_eq!(falling, capped, "{learner:?}");
+            // An initial noise above the ceiling starts at the ceiling.
+            let cfg = PpoConfig { max_log_std: Some(LogStdCeiling::Fixed(-1.5)), learner, ..Default::default() };
+            let ppo = Ppo::new(&cfg, &NetworkConfig::default(), 3, 2, rlnav_policy::training_device(), 1);
+            assert_eq!(to_vec(ppo.model().log_std.val()), vec![-1.5, -1.5]);
         }
     }
 }
