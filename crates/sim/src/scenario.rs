@@ -163,8 +163,8 @@ pub struct GeneratorSpec {
     /// Probability of one small obstacle (0.05–0.25 m) standing on the line just in front of
     /// the goal, so that the goal lies behind it (default 0).
     pub goal_behind: f32,
-    /// Share of the `count` obstacles missing from the map that the global plan is made on
-    /// (default 0): furniture moved since the room was mapped. The plan may run through them,
+    /// Share of the `count` obstacles and `forest` posts missing from the map that the global
+    /// plan is made on (default 0): furniture moved since the room was mapped. The plan may run through them,
     /// so that a plan-following policy learns to leave the plan for what its lidar sees, as
     /// it must for movers and people, which no map holds.
     pub unmapped: f32,
@@ -210,7 +210,10 @@ impl Default for CorridorGenSpec {
 /// A patch of thin posts (table and chair legs, stands, poles) on a jittered grid, centred on
 /// the start–goal line and turned to a random angle: returns a few centimetres wide that a
 /// sparse scan catches late, in numbers, with gaps the robot fits through. Posts keep off the
-/// start and the goal; a scene with a corridor has no patch.
+/// start and the goal, and the other generated obstacles keep `min_clearance` from them (so a
+/// patch on the line leaves less room for `on_line` clutter); posts are not kept out of
+/// doorways or dead ends (a world whose start is cut from its goal is drawn again). A scene
+/// with a corridor has no patch.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ForestGenSpec {
@@ -222,7 +225,8 @@ pub struct ForestGenSpec {
     pub spacing: [f32; 2],
     /// Side length range of the patch, each side drawn apart (m, default [1.5, 3.5]).
     pub size: [f32; 2],
-    /// How far a post may stray from its grid point, as a share of the spacing (default 0.2).
+    /// How far a post may stray from its grid point along each of the grid's axes, as a share
+    /// of the spacing (default 0.2).
     pub jitter: f32,
 }
 
@@ -369,7 +373,8 @@ impl GeneratorSpec {
     /// The generator at difficulty `d` in [0, 1]: 1 is the generator as written; lower values
     /// bring every range's hard end towards its easy end: fewer obstacles, fewer of them on the
     /// start–goal line and in front of the goal, fewer partitions (and thinner, with wider
-    /// doors), fewer dead ends, fewer and slower movers and people.
+    /// doors), fewer dead ends, rarer and wider corridors, rarer forests, fewer and slower
+    /// movers and people.
     pub fn at_difficulty(&self, d: f32) -> Self {
         let d = d.clamp(0.0, 1.0);
         let mut g = self.clone();
@@ -556,6 +561,10 @@ impl Validate for ScenarioSpec {
                 check_interval("procedural.forest.spacing", f.spacing, 0.2, 100.0)?;
                 check_interval("procedural.forest.size", f.size, 0.0, 100.0)?;
                 check_range("procedural.forest.jitter", f.jitter, 0.0, 0.5)?;
+                // At most 31 x 31 posts: a patch is furniture, not a field of thousands.
+                if f.size[1] > 30.0 * f.spacing[0] {
+                    return Err(Invalid::new("procedural.forest.size", "at most 30 times spacing's lower end"));
+                }
             }
         }
         for (key, p) in [("start", &self.start), ("goal", &self.goal)] {
@@ -704,8 +713,8 @@ const GRID_RESOLUTION: f32 = 0.05;
 const PLACEMENT_TRIES: usize = 200;
 /// Worlds drawn before giving up. Generous: a failed draw stops a training run, and the
 /// draws that succeed earlier are the same whatever the limit (with a corridor in every
-/// scene about seven worlds in eight cut the start from the goal: 50 tries failed 3 draws
-/// in 1,000, 200 tries about one in 10^11).
+/// scene about nine worlds in ten cut the start from the goal: 50 tries failed 3 draws in
+/// 1,000, 200 tries fail about one in 10^10).
 const WORLD_TRIES: usize = 200;
 
 impl Scenario {
@@ -1620,7 +1629,7 @@ mod tests {
             let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
             let (mut inside, mut turning, mut n) = (0, 0, 0);
             for _ in 0..100 {
-                // With a corridor in every scene about seven worlds in eight cut the start
+                // With a corridor in every scene about nine worlds in ten cut the start
                 // from the goal; a draw keeps drawing worlds until one connects them.
                 let e = s.sample(&mut rng).expect("a draw finds a world within WORLD_TRIES");
                 n += 1;
@@ -1760,7 +1769,11 @@ mod tests {
             let (a, b) = (e.start.position(), e.goal);
             assert!(e.reach.connected(a, b));
             for o in e.world.obstacles().iter().filter(|o| o.bound_radius <= 0.04 + 1e-4) {
-                assert!(o.bound_radius >= 0.02 - 1e-4);
+                let (c, r) = (o.bound_center, o.bound_radius);
+                assert!(r >= 0.02 - 1e-4);
+                // Off the start and the goal by their clearances.
+                assert!((c - a).length() >= r + s.start_clearance() + 0.05 - 1e-4, "{c} near the start {a}");
+                assert!((c - b).length() >= r + s.clearance() + 0.05 - 1e-4, "{c} near the goal {b}");
                 posts += 1;
                 // Distance from the post to the segment start-goal.
                 let t = ((o.bound_center - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
@@ -1771,6 +1784,10 @@ mod tests {
         // arena, the start and the goal keep out), 69-72% of them within 1 m of the line.
         assert!(posts >= 20 * 5, "{posts} posts in 20 scenes");
         assert!(near_line * 3 >= posts, "{near_line} of {posts} posts within 1 m of the line");
+        // A patch of thousands of posts is refused, naming the key.
+        let huge = yaml.replace("size: [2.0, 3.0]", "size: [2.0, 40.0]");
+        let e = crate::config::from_yaml_str::<ScenarioSpec>("t.yaml", &huge).unwrap_err().to_string();
+        assert!(e.contains("procedural.forest.size"), "{e}");
         // At difficulty 0 no scene has a forest.
         let easy = Scenario::new(spec.at_difficulty(0.0), 0.2, 0.0).unwrap();
         for _ in 0..20 {

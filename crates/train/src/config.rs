@@ -109,7 +109,7 @@ pub struct PpoConfig {
 
 /// `train.max_log_std`: a fixed ceiling or one that moves linearly over the run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
+#[serde(untagged, expecting = "train.max_log_std: a number or a [start, end] pair")]
 pub enum LogStdCeiling {
     /// The same ceiling throughout.
     Fixed(f32),
@@ -607,8 +607,10 @@ mod tests {
         let ceiling = c.train.max_log_std.unwrap();
         assert_eq!((ceiling.at(0, 11), ceiling.at(10, 11)), (0.2, -1.2));
         assert!((ceiling.at(5, 11) + 0.5).abs() < 1e-6);
-        let e = load_run_config(None, &["train.max_log_std=[0, 9]".into()]).unwrap_err().to_string();
-        assert!(e.contains("train.max_log_std"), "{e}");
+        for bad in ["[0, 9]", "[1, 2, 3]", "high"] {
+            let e = load_run_config(None, &[format!("train.max_log_std={bad}")]).unwrap_err().to_string();
+            assert!(e.contains("max_log_std"), "{bad}: {e}");
+        }
     }
 
     #[test]

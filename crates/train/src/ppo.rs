@@ -720,7 +720,7 @@ mod tests {
     /// An epoch whose far-out samples (the actions at ±1, 2.7 σ from a mean near 0) did well
     /// and whose samples at the mean did badly: the update widens the noise, up to
     /// `train.max_log_std` when it is set, on either learner.
-    fn log_std_after_update(learner: Learner, max_log_std: Option<LogStdCeiling>) -> Vec<f32> {
+    fn log_std_after_update(learner: Learner, max_log_std: Option<LogStdCeiling>, epoch: usize) -> Vec<f32> {
         let cfg = PpoConfig {
             num_actors: 8,
             horizon_length: 16,
@@ -748,6 +748,7 @@ mod tests {
             b.returns[i] = 0.0;
             b.values[i] = 0.0;
         }
+        ppo.schedule(epoch);
         ppo.update();
         to_vec(ppo.model().log_std.val())
     }
@@ -755,13 +756,16 @@ mod tests {
     #[test]
     fn max_log_std_caps_the_noise_on_both_learners() {
         for learner in [Learner::Fast, Learner::Burn] {
-            let free = log_std_after_update(learner, None);
+            let free = log_std_after_update(learner, None, 0);
             assert!(free.iter().all(|&l| l > -0.95), "{learner:?}: the update widens the noise: {free:?}");
-            let capped = log_std_after_update(learner, Some(LogStdCeiling::Fixed(-1.0)));
+            let capped = log_std_after_update(learner, Some(LogStdCeiling::Fixed(-1.0)), 0);
             assert!(capped.iter().all(|&l| l <= -1.0 + 1e-6), "{learner:?}: capped at -1: {capped:?}");
-            // A ceiling that falls from -1 at the first epoch (of 200) holds -1 there.
-            let falling = log_std_after_update(learner, Some(LogStdCeiling::Linear([-1.0, -2.0])));
-            assert_eq!(falling, capped, "{learner:?}");
+            // A ceiling that falls from -1 at the first epoch (of 200) holds -1 there, and -1.5
+            // halfway.
+            let falling = |epoch| log_std_after_update(learner, Some(LogStdCeiling::Linear([-1.0, -2.0])), epoch);
+            assert_eq!(falling(0), capped, "{learner:?}");
+            let half = falling(100);
+            assert!(half.iter().all(|&l| (l + 1.5).abs() < 0.01), "{learner:?}: {half:?}");
             // An initial noise above the ceiling starts at the ceiling.
             let cfg = PpoConfig { max_log_std: Some(LogStdCeiling::Fixed(-1.5)), learner, ..Default::default() };
             let ppo = Ppo::new(&cfg, &NetworkConfig::default(), 3, 2, rlnav_policy::training_device(), 1);
