@@ -164,9 +164,9 @@ pub struct GeneratorSpec {
     /// the goal, so that the goal lies behind it (default 0).
     pub goal_behind: f32,
     /// Share of the `count` obstacles and `forest` posts missing from the map that the global
-    /// plan is made on (default 0): furniture moved since the room was mapped. The plan may run through them,
-    /// so that a plan-following policy learns to leave the plan for what its lidar sees, as
-    /// it must for movers and people, which no map holds.
+    /// plan is made on (default 0): furniture moved since the room was mapped. The plan may
+    /// run through them, so that a plan-following policy learns to leave the plan for what its
+    /// lidar sees, as it must for movers and people, which no map holds.
     pub unmapped: f32,
     /// Partition walls with doorways (none by default).
     pub partitions: Option<PartitionGenSpec>,
@@ -1302,10 +1302,10 @@ impl Scenario {
                 for (c, r) in forest_posts(f, s, q, rng) {
                     let inside = c.cmpge(self.area.min + Vec2::splat(r + 0.05)).all()
                         && c.cmple(self.area.max - Vec2::splat(r + 0.05)).all();
-                    let Ok(o) = Obstacle::new(ObstacleSpec::Circle { center: c.into(), radius: r }) else { continue };
                     if !(inside && keep_out(c, r)) {
                         continue;
                     }
+                    let Ok(o) = Obstacle::new(ObstacleSpec::Circle { center: c.into(), radius: r }) else { continue };
                     placed.push((c, r));
                     if g.unmapped > 0.0 && rng.random_range(0.0..1.0f32) < g.unmapped {
                         unmapped.push(obstacles.len());
