@@ -262,11 +262,14 @@ pub struct RunOptions<'a> {
     pub threads: usize,
     /// Record every episode as MCAP under `DIR/SCENARIO/CONTROLLER/episode_NNN.mcap`.
     pub record: Option<&'a Path>,
+    /// The task every controller runs under (default [`TaskConfig::default`]); a policy keeps
+    /// its own action ranges, control period and plan on top of it.
+    pub task: Option<&'a TaskConfig>,
 }
 
 impl Default for RunOptions<'_> {
     fn default() -> Self {
-        Self { robot: None, episodes: 20, seed: 0, threads: 1, record: None }
+        Self { robot: None, episodes: 20, seed: 0, threads: 1, record: None, task: None }
     }
 }
 
@@ -303,22 +306,48 @@ pub fn run_suite_with(
     opts: &RunOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<SuiteResult, BenchError> {
-    let RunOptions { robot, episodes, seed, threads, record } = *opts;
+    let RunOptions { robot, episodes, seed, threads, record, task } = *opts;
     if controllers.is_empty() && batch.is_none() {
         return Err(BenchError::NoControllers);
     }
     let bad = |name: &str, message: &str| BenchError::Controller { name: name.into(), message: message.into() };
-    let setups = suite_setups_scored(suite, robot, &TaskConfig::default())?;
-    // Each controller's scenes under its own task (a policy's action ranges, control period
-    // and plan); the same scenes and seeds for all.
+    let base = task.cloned().unwrap_or_default();
+    // Each controller runs under its own task (a policy's action ranges, control period and
+    // plan on top of the base).
+    let tasks = controllers
+        .iter()
+        .map(|c| task_for(c, &base).map_err(|e| bad(c, &e.to_string())))
+        .collect::<Result<Vec<_>, _>>()?;
+    // The batch policy's own observation, action and control period.
+    let batch_task = batch.as_ref().map(|b| TaskConfig {
+        physics_dt: b.task.physics_dt,
+        control_period: b.task.control_period,
+        action: b.task.action.clone(),
+        observation: b.task.observation.clone(),
+        plan: b.task.plan.clone(),
+        ..base.clone()
+    });
+    // The scenes every controller gets, drawn from one compiled scenario: the one for the
+    // largest turning radius among the tasks, so that no controller starts closer to a wall
+    // than it can turn away from. Compiled per task, starts (and so episodes) would differ.
+    let mut scene_task = &base;
+    for t in tasks.iter().chain(&batch_task) {
+        if t.turning_radius() > scene_task.turning_radius() {
+            scene_task = t;
+        }
+    }
+    let scenes = suite_setups_scored(suite, robot, scene_task)?;
+    let under = |t: &TaskConfig| -> Result<Vec<Arc<EnvSetup>>, BenchError> {
+        if t == scene_task {
+            return Ok(scenes.iter().map(|(s, _)| s.clone()).collect());
+        }
+        let own = suite_setups_scored(suite, robot, t)?;
+        own.iter().zip(&scenes).map(|((o, _), (s, _))| Ok(Arc::new(s.with_task(o.task.clone())?))).collect()
+    };
+    let setups: Vec<ScoredSetup> = under(&base)?.into_iter().zip(scenes.iter().map(|(_, b)| *b)).collect();
     let mut own_setups: Vec<Vec<Arc<EnvSetup>>> = Vec::with_capacity(controllers.len());
-    for c in controllers {
-        let task = task_for(c, &TaskConfig::default()).map_err(|e| bad(c, &e.to_string()))?;
-        own_setups.push(if task == TaskConfig::default() {
-            setups.iter().map(|(s, _)| s.clone()).collect()
-        } else {
-            suite_setups_scored(suite, robot, &task)?.into_iter().map(|(s, _)| s).collect()
-        });
+    for t in &tasks {
+        own_setups.push(if *t == base { setups.iter().map(|(s, _)| s.clone()).collect() } else { under(t)? });
     }
     let mut warnings = Vec::new();
     for (c, mine) in controllers.iter().zip(&own_setups) {
@@ -334,22 +363,13 @@ pub fn run_suite_with(
     }
     let total = setups.len() * (controllers.len() + usize::from(batch.is_some()));
     // The batch policy's scenes under its own observation, action and control period.
-    let mut batch_runs = match &mut batch {
-        Some(b) => {
-            let base = TaskConfig {
-                physics_dt: b.task.physics_dt,
-                control_period: b.task.control_period,
-                action: b.task.action.clone(),
-                observation: b.task.observation.clone(),
-                plan: b.task.plan.clone(),
-                ..TaskConfig::default()
-            };
-            let own: Vec<Arc<EnvSetup>> =
-                suite_setups_scored(suite, robot, &base)?.into_iter().map(|(s, _)| s).collect();
+    let mut batch_runs = match (&mut batch, &batch_task) {
+        (Some(b), Some(t)) => {
+            let own = under(t)?;
             let runs = evaluate_batch(&own, episodes, seed, threads, b.policy).map_err(|e| bad(b.name, &e))?;
             runs.into_iter().map(Some).collect()
         }
-        None => vec![None; setups.len()],
+        _ => vec![None; setups.len()],
     };
     let mut done = if batch.is_some() { setups.len() } else { 0 };
     if done > 0 {

@@ -17,7 +17,7 @@ fn suites_run_controllers_on_the_same_episodes() {
     let r = run_suite(
         &suite,
         &controllers,
-        &RunOptions { robot: None, episodes: 3, seed: 11, threads: 2, record: None },
+        &RunOptions { robot: None, episodes: 3, seed: 11, threads: 2, record: None, task: None },
         &mut |done, total| ticks.push((done, total)),
     )
     .unwrap();
@@ -65,7 +65,7 @@ fn bad_benchmarks_fail_before_any_episode() {
     let e = run_suite(
         &suite,
         &["psychic".into()],
-        &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None },
+        &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None, task: None },
         &mut |_, _| {},
     )
     .unwrap_err();
@@ -74,7 +74,7 @@ fn bad_benchmarks_fail_before_any_episode() {
     let e = run_suite(
         &suite,
         &[format!("rl:{policy}")],
-        &RunOptions { robot: Some("jackal"), episodes: 1, seed: 0, threads: 1, record: None },
+        &RunOptions { robot: Some("jackal"), episodes: 1, seed: 0, threads: 1, record: None, task: None },
         &mut |_, _| {},
     )
     .unwrap_err()
@@ -84,7 +84,7 @@ fn bad_benchmarks_fail_before_any_episode() {
         run_suite(
             &suite,
             &[],
-            &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None },
+            &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None, task: None },
             &mut |_, _| {}
         ),
         Err(BenchError::NoControllers)
@@ -139,7 +139,7 @@ fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
     let r = run_suite(
         &suite,
         &["dwa".into()],
-        &RunOptions { robot: None, episodes: 1, seed: 0, threads: 2, record: None },
+        &RunOptions { robot: None, episodes: 1, seed: 0, threads: 2, record: None, task: None },
         &mut |_, _| {},
     )
     .unwrap();
@@ -166,7 +166,7 @@ fn barn_worlds_run_under_the_challenge_rules_and_are_scored() {
         run_suite(
             &suite,
             &[format!("rl:{policy}")],
-            &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None },
+            &RunOptions { robot: None, episodes: 1, seed: 0, threads: 1, record: None, task: None },
             &mut |_, _| {}
         )
         .is_err()
@@ -244,7 +244,7 @@ fn the_jackal_policy_drives_at_its_own_speed_and_outscores_dwa_on_barn() {
     let r = run_suite(
         &suite,
         &[rl.clone(), "dwa".into()],
-        &RunOptions { robot: None, episodes: 1, seed: 0, threads: 2, record: None },
+        &RunOptions { robot: None, episodes: 1, seed: 0, threads: 2, record: None, task: None },
         &mut |_, _| {},
     )
     .unwrap();
@@ -260,4 +260,33 @@ fn the_jackal_policy_drives_at_its_own_speed_and_outscores_dwa_on_barn() {
     assert!(success >= 0.84, "{success}");
     let (score, dwa_score) = (mean(&mine, &|c| c.barn_score.unwrap()), mean(&dwa, &|c| c.barn_score.unwrap()));
     assert!(score > dwa_score + 0.1, "policy {score} against DWA {dwa_score}");
+}
+
+/// A task that lets the robot stop admits starts nearer the walls than one that cannot turn on
+/// the spot, so scenes compiled per task would differ; the bench gives every controller the
+/// scenes drawn for the one that needs the most room.
+#[test]
+fn controllers_under_different_action_ranges_get_the_same_scenes() {
+    use rlnav_sim::task::{ActionConfig, TaskConfig};
+    let suite = rlnav_sim::config::from_yaml_str::<SuiteSpec>(
+        "tight.yaml",
+        "name: tight\nscenarios: [heldout-static-corridor]\nepisodes: 8\n",
+    )
+    .unwrap();
+    let stop = TaskConfig { action: ActionConfig { linear: [0.0, 0.5], angular: [-0.5, 0.5] }, ..Default::default() };
+    assert_eq!(stop.turning_radius(), 0.0);
+    assert!((TaskConfig::default().turning_radius() - 0.2).abs() < 1e-6);
+    let policy = format!("rl:{}", concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx"));
+    let run = |controllers: &[String], task: Option<&TaskConfig>| {
+        let opts = RunOptions { robot: None, episodes: 8, seed: 3, threads: 2, record: None, task };
+        run_suite(&suite, controllers, &opts, &mut |_, _| {}).unwrap()
+    };
+    let starts = |c: &rlnav_bench::suite::CellResult| c.traces.iter().map(|t| t.position[0]).collect::<Vec<_>>();
+    let both = run(&["dwa".into(), policy.clone()], Some(&stop));
+    assert_eq!(both.cells[1].controller, policy);
+    assert_eq!(starts(&both.cells[0]), starts(&both.cells[1]));
+    // Those are the scenes the policy gets benched alone (its own ranges need the room)...
+    assert_eq!(starts(&run(std::slice::from_ref(&policy), None).cells[0]), starts(&both.cells[1]));
+    // ...and not those of DWA alone under the stopping task, which may start nearer a wall.
+    assert_ne!(starts(&run(&["dwa".into()], Some(&stop)).cells[0]), starts(&both.cells[0]));
 }

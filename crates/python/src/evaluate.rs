@@ -98,7 +98,8 @@ pub fn evaluate(
     }
     let task = task_file(task)?;
     let threads = if threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { threads };
-    let opts = RunOptions { robot, episodes: episodes.unwrap_or(spec.episodes), seed, threads, record: None };
+    let opts =
+        RunOptions { robot, episodes: episodes.unwrap_or(spec.episodes), seed, threads, record: None, task: None };
     let mut callable = PyPolicy(policy);
     let result = py
         .detach(|| {

@@ -247,6 +247,14 @@ impl TaskConfig {
     pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
         from_yaml_file(path)
     }
+
+    /// The tightest circle the action ranges drive (m): `v_min / w_max`, 0 for a robot that
+    /// may stop and turn on the spot. Starts keep this much extra room from obstacles.
+    pub fn turning_radius(&self) -> f32 {
+        let (v_min, w_max) =
+            (self.action.linear[0].max(0.0), self.action.angular[0].abs().max(self.action.angular[1].abs()));
+        if v_min > 0.0 && w_max > 0.0 { v_min / w_max } else { 0.0 }
+    }
 }
 
 /// How an episode ended.
@@ -469,10 +477,7 @@ impl EnvSetup {
         let clearance = footprint.radius().max(task.collision_range);
         // A robot that cannot turn on the spot (v_min > 0) needs its turning radius of room
         // at the start, or a start facing a wall is a collision no policy can avoid.
-        let (v_min, w_max) =
-            (task.action.linear[0].max(0.0), task.action.angular[0].abs().max(task.action.angular[1].abs()));
-        let turning_radius = if v_min > 0.0 && w_max > 0.0 { v_min / w_max } else { 0.0 };
-        let scenario = Scenario::new(scenario, clearance, turning_radius)?;
+        let scenario = Scenario::new(scenario, clearance, task.turning_radius())?;
         let substeps = (task.control_period / task.physics_dt).round() as u32;
         let obs_dim = task.observation.len();
         Ok(Self {
@@ -495,6 +500,17 @@ impl EnvSetup {
         self.levels =
             (0..n).map(|k| self.scenario.at_difficulty(k as f32 / (n - 1) as f32)).collect::<Result<_, _>>()?;
         Ok(self)
+    }
+
+    /// The same scenes under another task (observation, action ranges, timing, rules): this
+    /// setup's compiled scenario with `task`, so that an episode drawn with a given seed is
+    /// the same scene under both. Compiled afresh, a task whose turning radius differs would
+    /// admit other starts and draw other episodes. `task` must still fit the robot.
+    pub fn with_task(&self, task: TaskConfig) -> Result<Self, SimError> {
+        let mut setup = Self::new(self.scenario.spec().clone(), self.robot.clone(), task)?;
+        setup.scenario = self.scenario.clone();
+        setup.levels = self.levels.clone();
+        Ok(setup)
     }
 
     /// Loads the scenario (preset or file) with its own robot and the default task.

@@ -32,6 +32,11 @@ pub struct Args {
     /// /goal_pose, /clock) under OUT/mcap/SUITE/SCENARIO/CONTROLLER/.
     #[arg(long)]
     record: bool,
+    /// Task file every controller runs under (default: configs/task.yaml's values, built in);
+    /// a policy keeps its own action ranges, control period and plan on top of it. Give a
+    /// classical planner a policy's action ranges with it, for a like-for-like comparison.
+    #[arg(long)]
+    task: Option<PathBuf>,
     /// Control cycles timed per controller for the per-cycle compute table (0: none).
     #[arg(long, default_value_t = 3000)]
     timing_cycles: usize,
@@ -58,6 +63,7 @@ pub fn run(a: Args) -> Result<()> {
     anyhow::ensure!(a.episodes != Some(0), "--episodes must be at least 1");
     // Load every suite first: a bad name fails before any episode runs.
     let specs = suites.iter().map(|s| SuiteSpec::load(s)).collect::<Result<Vec<_>, _>>()?;
+    let task = a.task.as_deref().map(rlnav_sim::TaskConfig::from_file).transpose()?;
     let mut md = String::new();
     let mut all = Vec::new();
     for spec in &specs {
@@ -77,6 +83,7 @@ pub fn run(a: Args) -> Result<()> {
             seed: a.seed,
             threads: a.threads.max(1),
             record: record.as_deref(),
+            task: task.as_ref(),
         };
         let r = run_suite(spec, &controllers, &opts, &mut |done, total| {
             bar.set_length(total as u64);
