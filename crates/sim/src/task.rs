@@ -82,6 +82,14 @@ pub struct RewardConfig {
     pub social: f32,
     /// Radius of a person's personal space for the social penalty (m, default 1.0).
     pub social_radius: f32,
+    /// Penalty per control step while the robot's measured forward speed is below
+    /// `idle_speed` (default 0: off). For action ranges that let the robot stop: without it,
+    /// standing until the time limit costs nothing the discount leaves (γ = 0.99 puts a
+    /// time-out 100 s away at 10^-44 of its weight), and a policy learns to freeze where
+    /// moving on risks a collision.
+    pub idle: f32,
+    /// Forward speed below which a step counts as idle (m/s, default 0.05).
+    pub idle_speed: f32,
 }
 
 impl Default for RewardConfig {
@@ -96,6 +104,8 @@ impl Default for RewardConfig {
             timeout: -30.0,
             social: 0.0,
             social_radius: 1.0,
+            idle: 0.0,
+            idle_speed: 0.05,
         }
     }
 }
@@ -237,6 +247,8 @@ impl Validate for TaskConfig {
         check_range("reward.proximity_range", r.proximity_range, 0.0, 100.0)?;
         check_range("reward.social", r.social, 0.0, 1e4)?;
         check_range("reward.social_radius", r.social_radius, 0.01, 100.0)?;
+        check_range("reward.idle", r.idle, 0.0, 1e4)?;
+        check_range("reward.idle_speed", r.idle_speed, 0.0, 100.0)?;
         self.randomization.validate()?;
         self.observation.check()
     }
@@ -829,6 +841,9 @@ impl NavEnv {
         if r_min < rw.proximity_range {
             reward -= rw.proximity * (-r_min).exp();
         }
+        if rw.idle > 0.0 && self.drive.velocity.linear.abs() < rw.idle_speed {
+            reward -= rw.idle;
+        }
         self.distance = remaining;
         let outcome = if contact || r_min < task.collision_range {
             reward += rw.collision;
@@ -1208,6 +1223,34 @@ mod tests {
             }
         }
         assert_eq!(env.last_episode().unwrap().outcome, Outcome::Timeout);
+    }
+
+    #[test]
+    fn standing_still_costs_the_idle_penalty_and_driving_does_not() {
+        let spec = ScenarioSpec::load("empty-room").unwrap();
+        let robot = RobotSpec::load("jetbot").unwrap();
+        let stop = ActionConfig { linear: [0.0, 0.5], angular: [-0.5, 0.5] };
+        let task = |idle: f32| {
+            let reward = RewardConfig { idle, ..Default::default() };
+            TaskConfig { action: stop.clone(), reward, ..Default::default() }
+        };
+        let env = |idle| NavEnv::new(Arc::new(EnvSetup::new(spec.clone(), robot.clone(), task(idle)).unwrap()), 3);
+        let (mut off, mut on) = (env(0.0).unwrap(), env(0.5).unwrap());
+        // Standing (speed 0 from the start): every step costs exactly the penalty more.
+        for _ in 0..5 {
+            let (a, b) = (off.step([-1.0, 0.0]), on.step([-1.0, 0.0]));
+            assert!(!a.terminated && !a.truncated);
+            assert!((a.reward - b.reward - 0.5).abs() < 1e-5, "{} vs {}", a.reward, b.reward);
+        }
+        // Driving at 0.25 m/s (once the robot is up to speed): no penalty at all.
+        let mut gaps = Vec::new();
+        for _ in 0..10 {
+            let (a, b) = (off.step([0.0, 0.0]), on.step([0.0, 0.0]));
+            gaps.push(a.reward - b.reward);
+        }
+        assert!(gaps[3..].iter().all(|g| g.abs() < 1e-6), "{gaps:?}");
+        let bad = TaskConfig { reward: RewardConfig { idle: -1.0, ..Default::default() }, ..Default::default() };
+        assert_eq!(bad.validate().unwrap_err().key, "reward.idle");
     }
 
     #[test]
