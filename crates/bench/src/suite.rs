@@ -196,7 +196,16 @@ pub struct SuiteResult {
 /// then its BARN worlds under the challenge's rules (1 m success radius, the time limit, a
 /// collision is contact), in the order [`run_suite`] runs them.
 pub fn suite_setups(suite: &SuiteSpec, robot: Option<&str>) -> Result<Vec<Arc<EnvSetup>>, BenchError> {
-    Ok(suite_setups_scored(suite, robot, &TaskConfig::default())?.into_iter().map(|(s, _)| s).collect())
+    suite_setups_under(suite, robot, &TaskConfig::default())
+}
+
+/// [`suite_setups`] under `task` in place of the default (`rlnav bench --task`).
+pub fn suite_setups_under(
+    suite: &SuiteSpec,
+    robot: Option<&str>,
+    task: &TaskConfig,
+) -> Result<Vec<Arc<EnvSetup>>, BenchError> {
+    Ok(suite_setups_scored(suite, robot, task)?.into_iter().map(|(s, _)| s).collect())
 }
 
 /// What scoring a BARN world needs: its optimal time, and its difficulty for the tables.

@@ -517,9 +517,24 @@ impl EnvSetup {
     /// The same scenes under another task (observation, action ranges, timing, rules): this
     /// setup's compiled scenario with `task`, so that an episode drawn with a given seed is
     /// the same scene under both. Compiled afresh, a task whose turning radius differs would
-    /// admit other starts and draw other episodes. `task` must still fit the robot.
+    /// admit other starts and draw other episodes. `task` must fit the robot, keep the
+    /// clearance the scenes were compiled for (the same collision range) and need no more
+    /// room at the start (a turning radius no larger), or it is refused.
     pub fn with_task(&self, task: TaskConfig) -> Result<Self, SimError> {
         let mut setup = Self::new(self.scenario.spec().clone(), self.robot.clone(), task)?;
+        let (mine, theirs) = (&self.scenario, &setup.scenario);
+        if theirs.clearance() != mine.clearance() || theirs.start_clearance() > mine.start_clearance() + 1e-6 {
+            return Err(SimError::Incompatible {
+                robot: self.robot.name.clone(),
+                message: format!(
+                    "scenes compiled for a clearance of {} m ({} m at the start) cannot be run under a task that needs {} m ({} m at the start)",
+                    mine.clearance(),
+                    mine.start_clearance(),
+                    theirs.clearance(),
+                    theirs.start_clearance()
+                ),
+            });
+        }
         setup.scenario = self.scenario.clone();
         setup.levels = self.levels.clone();
         Ok(setup)
@@ -1251,6 +1266,38 @@ mod tests {
         assert!(gaps[3..].iter().all(|g| g.abs() < 1e-6), "{gaps:?}");
         let bad = TaskConfig { reward: RewardConfig { idle: -1.0, ..Default::default() }, ..Default::default() };
         assert_eq!(bad.validate().unwrap_err().key, "reward.idle");
+    }
+
+    #[test]
+    fn with_task_keeps_the_scenes_and_refuses_a_task_that_needs_more_room() {
+        let spec = ScenarioSpec::load("heldout-static-corridor").unwrap();
+        let robot = RobotSpec::load("jetbot").unwrap();
+        let stop =
+            TaskConfig { action: ActionConfig { linear: [0.0, 0.5], angular: [-0.5, 0.5] }, ..Default::default() };
+        let article = EnvSetup::new(spec.clone(), robot.clone(), TaskConfig::default()).unwrap();
+        let moved = article.with_task(stop.clone()).unwrap();
+        assert_eq!(moved.task, stop);
+        assert_eq!(moved.scenario.start_clearance(), article.scenario.start_clearance());
+        let own = EnvSetup::new(spec, robot, stop.clone()).unwrap();
+        assert!(own.scenario.start_clearance() < article.scenario.start_clearance());
+        let starts = |s: EnvSetup| {
+            let mut env = NavEnv::new(Arc::new(s), 5).unwrap();
+            (0..6)
+                .map(|_| {
+                    let p = env.drive.pose.position();
+                    env.reset().unwrap();
+                    p
+                })
+                .collect::<Vec<_>>()
+        };
+        let article_starts = starts(article.with_task(TaskConfig::default()).unwrap());
+        assert_eq!(starts(moved), article_starts);
+        // Scenes drawn for a robot that may stop are too tight for one that cannot...
+        let e = own.with_task(TaskConfig::default()).unwrap_err().to_string();
+        assert!(e.contains("at the start"), "{e}");
+        // ...and scenes compiled for one collision range do not serve another.
+        let wide = TaskConfig { collision_range: 0.4, ..Default::default() };
+        assert!(article.with_task(wide).is_err());
     }
 
     #[test]

@@ -2,7 +2,7 @@
 
 use super::{progress_bar, write_json};
 use anyhow::{Context, Result};
-use rlnav_bench::suite::{RunOptions, SuiteSpec, run_suite, suite_setups};
+use rlnav_bench::suite::{RunOptions, SuiteSpec, run_suite, suite_setups_under};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -32,9 +32,11 @@ pub struct Args {
     /// /goal_pose, /clock) under OUT/mcap/SUITE/SCENARIO/CONTROLLER/.
     #[arg(long)]
     record: bool,
-    /// Task file every controller runs under (default: configs/task.yaml's values, built in);
-    /// a policy keeps its own action ranges, control period and plan on top of it. Give a
-    /// classical planner a policy's action ranges with it, for a like-for-like comparison.
+    /// Task file every controller runs under (default: configs/task.yaml's values, built in):
+    /// action ranges, time limit, collision range, goal tolerance. A policy keeps its own
+    /// action ranges, control period and plan on top of it; BARN worlds keep the challenge's
+    /// rules. Give a classical planner a policy's action ranges with it, for a like-for-like
+    /// comparison.
     #[arg(long)]
     task: Option<PathBuf>,
     /// Control cycles timed per controller for the per-cycle compute table (0: none).
@@ -64,6 +66,7 @@ pub fn run(a: Args) -> Result<()> {
     // Load every suite first: a bad name fails before any episode runs.
     let specs = suites.iter().map(|s| SuiteSpec::load(s)).collect::<Result<Vec<_>, _>>()?;
     let task = a.task.as_deref().map(rlnav_sim::TaskConfig::from_file).transpose()?;
+    let base = task.clone().unwrap_or_default();
     let mut md = String::new();
     let mut all = Vec::new();
     for spec in &specs {
@@ -94,7 +97,7 @@ pub fn run(a: Args) -> Result<()> {
             eprintln!("warning: {w}");
         }
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-        let setups = suite_setups(spec, a.robot.as_deref())?;
+        let setups = suite_setups_under(spec, a.robot.as_deref(), &base)?;
         let figures = rlnav_bench::plots::write_suite_figures(&r, &setups, out).map_err(|e| anyhow::anyhow!(e))?;
         eprintln!("{}: {} figures in {}", spec.name, figures.len(), out.display());
         if let Some(dir) = &record {
@@ -110,7 +113,7 @@ pub fn run(a: Args) -> Result<()> {
     // scenario: what each costs per control step on this machine.
     let mut timing = Vec::new();
     if a.timing_cycles > 0 {
-        let setup = suite_setups(&specs[0], a.robot.as_deref())?.remove(0);
+        let setup = suite_setups_under(&specs[0], a.robot.as_deref(), &base)?.remove(0);
         timing = rlnav_bench::latency::measure_controllers(&controllers, &setup, a.timing_cycles, a.seed)?;
         let t = rlnav_bench::latency::markdown(&timing, &setup.scenario.spec().name);
         println!("{t}");
