@@ -84,9 +84,9 @@ pub struct RewardConfig {
     pub social_radius: f32,
     /// Penalty per control step while the robot's measured forward speed is below
     /// `idle_speed` (default 0: off). For action ranges that let the robot stop: without it,
-    /// standing until the time limit costs nothing the discount leaves (γ = 0.99 puts a
-    /// time-out 100 s away at 10^-44 of its weight), and a policy learns to freeze where
-    /// moving on risks a collision.
+    /// standing until the time limit costs next to nothing once discounted (γ = 0.99 puts a
+    /// time-out 1,000 steps away at 4·10^-5 of its weight), and a policy learns to freeze
+    /// where moving on risks a collision.
     pub idle: f32,
     /// Forward speed below which a step counts as idle (m/s, default 0.05).
     pub idle_speed: f32,
