@@ -205,7 +205,7 @@ pub fn suite_setups_under(
     robot: Option<&str>,
     task: &TaskConfig,
 ) -> Result<Vec<Arc<EnvSetup>>, BenchError> {
-    Ok(suite_setups_scored(suite, robot, task)?.into_iter().map(|(s, _)| s).collect())
+    Ok(suite_setups_scored(suite, robot, task)?.into_iter().map(|(s, _)| Arc::new(s)).collect())
 }
 
 /// What scoring a BARN world needs: its optimal time, and its difficulty for the tables.
@@ -216,7 +216,7 @@ struct BarnRef {
 }
 
 /// A scenario compiled for the run, with what its score needs when it is a BARN world.
-type ScoredSetup = (Arc<EnvSetup>, Option<BarnRef>);
+type ScoredSetup = (EnvSetup, Option<BarnRef>);
 
 /// As [`suite_setups`], with `base` in place of the default task (BARN's rules on top).
 fn suite_setups_scored(
@@ -228,7 +228,7 @@ fn suite_setups_scored(
     for name in &suite.scenarios {
         let spec = ScenarioSpec::load(name)?;
         let robot = RobotSpec::load(robot.unwrap_or(&spec.robot))?;
-        setups.push((Arc::new(EnvSetup::new(spec, robot, base.clone())?), None));
+        setups.push((EnvSetup::new(spec, robot, base.clone())?, None));
     }
     if let Some(b) = &suite.barn {
         let set = rlnav_sim::barn::BarnSet::load_named(&b.file)?;
@@ -252,7 +252,7 @@ fn suite_setups_scored(
         for w in worlds.into_iter().step_by(b.every) {
             let robot = RobotSpec::load(robot.unwrap_or(&w.spec.robot))?;
             let scored = BarnRef { optimal_time: w.optimal_time, difficulty: w.difficulty };
-            setups.push((Arc::new(EnvSetup::new(w.spec.clone(), robot, task.clone())?), Some(scored)));
+            setups.push((EnvSetup::new(w.spec.clone(), robot, task.clone())?, Some(scored)));
         }
     }
     Ok(setups)
@@ -345,15 +345,17 @@ pub fn run_suite_with(
             scene_task = t;
         }
     }
-    let scenes = suite_setups_scored(suite, robot, scene_task)?;
+    let scenes: Vec<(Arc<EnvSetup>, Option<BarnRef>)> =
+        suite_setups_scored(suite, robot, scene_task)?.into_iter().map(|(s, b)| (Arc::new(s), b)).collect();
     let under = |t: &TaskConfig| -> Result<Vec<Arc<EnvSetup>>, BenchError> {
         if t == scene_task {
             return Ok(scenes.iter().map(|(s, _)| s.clone()).collect());
         }
         let own = suite_setups_scored(suite, robot, t)?;
-        own.iter().zip(&scenes).map(|((o, _), (s, _))| Ok(Arc::new(s.with_task(o.task.clone())?))).collect()
+        own.into_iter().zip(&scenes).map(|((o, _), (s, _))| Ok(Arc::new(o.on_scenes_of(s)?))).collect()
     };
-    let setups: Vec<ScoredSetup> = under(&base)?.into_iter().zip(scenes.iter().map(|(_, b)| *b)).collect();
+    let setups: Vec<(Arc<EnvSetup>, Option<BarnRef>)> =
+        under(&base)?.into_iter().zip(scenes.iter().map(|(_, b)| *b)).collect();
     let mut own_setups: Vec<Vec<Arc<EnvSetup>>> = Vec::with_capacity(controllers.len());
     for t in &tasks {
         own_setups.push(if *t == base { setups.iter().map(|(s, _)| s.clone()).collect() } else { under(t)? });

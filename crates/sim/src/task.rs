@@ -517,27 +517,39 @@ impl EnvSetup {
     /// The same scenes under another task (observation, action ranges, timing, rules): this
     /// setup's compiled scenario with `task`, so that an episode drawn with a given seed is
     /// the same scene under both. Compiled afresh, a task whose turning radius differs would
-    /// admit other starts and draw other episodes. `task` must fit the robot, keep the
-    /// clearance the scenes were compiled for (the same collision range) and need no more
-    /// room at the start (a turning radius no larger), or it is refused.
+    /// admit other starts and draw other episodes. Refused as [`Self::on_scenes_of`] refuses.
     pub fn with_task(&self, task: TaskConfig) -> Result<Self, SimError> {
-        let mut setup = Self::new(self.scenario.spec().clone(), self.robot.clone(), task)?;
-        let (mine, theirs) = (&self.scenario, &setup.scenario);
-        if theirs.clearance() != mine.clearance() || theirs.start_clearance() > mine.start_clearance() + 1e-6 {
-            return Err(SimError::Incompatible {
-                robot: self.robot.name.clone(),
-                message: format!(
-                    "scenes compiled for a clearance of {} m ({} m at the start) cannot be run under a task that needs {} m ({} m at the start)",
-                    mine.clearance(),
-                    mine.start_clearance(),
-                    theirs.clearance(),
-                    theirs.start_clearance()
-                ),
-            });
+        Self::new(self.scenario.spec().clone(), self.robot.clone(), task)?.on_scenes_of(self)
+    }
+
+    /// This setup on `other`'s compiled scenario (and difficulty levels): the episodes
+    /// `other` draws, under this setup's task. Refused unless both are the same scenario and
+    /// robot, with the same clearance (collision range), and this task needs no more room at
+    /// the start than `other`'s scenes keep (a turning radius no larger).
+    pub fn on_scenes_of(mut self, other: &EnvSetup) -> Result<Self, SimError> {
+        let (mine, theirs) = (&self.scenario, &other.scenario);
+        let incompatible = |message: String| SimError::Incompatible { robot: self.robot.name.clone(), message };
+        if mine.spec() != theirs.spec() || self.robot != other.robot {
+            return Err(incompatible(format!(
+                "scenes of `{}` with `{}` are not those of `{}` with `{}`",
+                theirs.spec().name,
+                other.robot.name,
+                mine.spec().name,
+                self.robot.name
+            )));
         }
-        setup.scenario = self.scenario.clone();
-        setup.levels = self.levels.clone();
-        Ok(setup)
+        if mine.clearance() != theirs.clearance() || mine.start_clearance() > theirs.start_clearance() + 1e-6 {
+            return Err(incompatible(format!(
+                "scenes compiled for a clearance of {} m ({} m at the start) cannot be run under a task that needs {} m ({} m at the start)",
+                theirs.clearance(),
+                theirs.start_clearance(),
+                mine.clearance(),
+                mine.start_clearance()
+            )));
+        }
+        self.scenario = other.scenario.clone();
+        self.levels = other.levels.clone();
+        Ok(self)
     }
 
     /// Loads the scenario (preset or file) with its own robot and the default task.
@@ -1298,6 +1310,10 @@ mod tests {
         // ...and scenes compiled for one collision range do not serve another.
         let wide = TaskConfig { collision_range: 0.4, ..Default::default() };
         assert!(article.with_task(wide).is_err());
+        // ...nor are one room's scenes another room's.
+        let other = EnvSetup::load("heldout-static-legs", Some("jetbot"), None).unwrap();
+        let e = other.on_scenes_of(&article).unwrap_err().to_string();
+        assert!(e.contains("heldout-static-legs") && e.contains("heldout-static-corridor"), "{e}");
     }
 
     #[test]
