@@ -199,11 +199,27 @@ pub struct CorridorGenSpec {
     pub thickness: [f32; 2],
     /// How far the walls run on past the start and the goal (m, default [0.2, 0.8]).
     pub overrun: [f32; 2],
+    /// How many obstacles stand against a corridor's walls (a bin, a pillar, a cabinet),
+    /// each narrowing the way to a passage of `narrowing_gap` beside it (default [0, 0]:
+    /// none). They keep off the corners, the start and the goal, and are left off the map
+    /// with the generator's `unmapped` share, like the other clutter.
+    pub narrowings: [u32; 2],
+    /// The passage a narrowing leaves between it and the opposite wall (m, default
+    /// [0.7, 1.0]); where the corridor is not wider than the passage drawn by 0.1 m, that
+    /// narrowing is left out.
+    pub narrowing_gap: [f32; 2],
 }
 
 impl Default for CorridorGenSpec {
     fn default() -> Self {
-        Self { probability: 1.0, width: [0.9, 1.5], thickness: [0.05, 0.2], overrun: [0.2, 0.8] }
+        Self {
+            probability: 1.0,
+            width: [0.9, 1.5],
+            thickness: [0.05, 0.2],
+            overrun: [0.2, 0.8],
+            narrowings: [0, 0],
+            narrowing_gap: [0.7, 1.0],
+        }
     }
 }
 
@@ -403,6 +419,8 @@ impl GeneratorSpec {
             // Narrow corridors are the hard ones.
             c.probability *= d;
             c.width = [c.width[1] - d * (c.width[1] - c.width[0]), c.width[1]];
+            c.narrowings = scale_count(c.narrowings, d);
+            c.narrowing_gap = [c.narrowing_gap[1] - d * (c.narrowing_gap[1] - c.narrowing_gap[0]), c.narrowing_gap[1]];
         }
         if let Some(m) = &mut g.movers {
             m.count = scale_count(m.count, d);
@@ -554,6 +572,8 @@ impl Validate for ScenarioSpec {
                 check_interval("procedural.corridors.width", c.width, 0.3, 100.0)?;
                 check_interval("procedural.corridors.thickness", c.thickness, 0.0, 10.0)?;
                 check_interval("procedural.corridors.overrun", c.overrun, 0.0, 100.0)?;
+                check_count("procedural.corridors.narrowings", c.narrowings, 10)?;
+                check_interval("procedural.corridors.narrowing_gap", c.narrowing_gap, 0.3, 100.0)?;
             }
             if let Some(f) = &g.forest {
                 check_range("procedural.forest.probability", f.probability, 0.0, 1.0)?;
@@ -1291,7 +1311,17 @@ impl Scenario {
         // A corridor replaces the structures across the line (they would block it).
         let corridor = match (anchors, &g.corridors) {
             (Some((s, q)), Some(c)) if rng.random_range(0.0..1.0f32) < c.probability => {
-                corridor_walls(c, s, q, rng, &mut obstacles);
+                let shape = corridor_walls(c, s, q, rng, &mut obstacles);
+                for (o, c, r) in corridor_narrowings(c, &shape, rng) {
+                    if !keep_out(c, r) {
+                        continue;
+                    }
+                    placed.push((c, r));
+                    if g.unmapped > 0.0 && rng.random_range(0.0..1.0f32) < g.unmapped {
+                        unmapped.push(obstacles.len());
+                    }
+                    obstacles.push(o);
+                }
                 true
             }
             _ => false,
@@ -1427,7 +1457,13 @@ fn forest_posts<R: rand::Rng>(f: &ForestGenSpec, s: Vec2, q: Vec2, rng: &mut R) 
 /// the width to one side, with mitred corners, run on past both ends. The start's end is
 /// closed (the robot starts at a corridor's dead end, so that the way is along it, not round
 /// it through the open room), the goal's end half the time.
-fn corridor_walls<R: rand::Rng>(c: &CorridorGenSpec, s: Vec2, q: Vec2, rng: &mut R, obstacles: &mut Vec<Obstacle>) {
+fn corridor_walls<R: rand::Rng>(
+    c: &CorridorGenSpec,
+    s: Vec2,
+    q: Vec2,
+    rng: &mut R,
+    obstacles: &mut Vec<Obstacle>,
+) -> CorridorShape {
     let width = rng.random_range(c.width[0]..=c.width[1]);
     let thick = rng.random_range(c.thickness[0]..=c.thickness[1]);
     let overrun = rng.random_range(c.overrun[0]..=c.overrun[1]);
@@ -1453,6 +1489,8 @@ fn corridor_walls<R: rand::Rng>(c: &CorridorGenSpec, s: Vec2, q: Vec2, rng: &mut
         }
     }
     route.push(q);
+    // Thinner than 2 cm the walls are drawn as lines (below).
+    let shape = CorridorShape { route: route.clone(), inner: width - if thick < 0.02 { 0.0 } else { thick } };
     // Run the walls on past both ends.
     let n = route.len();
     let first = (route[1] - route[0]).normalize_or_zero();
@@ -1501,6 +1539,61 @@ fn corridor_walls<R: rand::Rng>(c: &CorridorGenSpec, s: Vec2, q: Vec2, rng: &mut
             obstacles.push(o);
         }
     }
+    shape
+}
+
+/// Where a corridor runs, for what stands in it: the route from the start to the goal
+/// through its turns, and the free width between the walls' inner faces.
+struct CorridorShape {
+    route: Vec<Vec2>,
+    inner: f32,
+}
+
+/// The narrowings of a corridor ([`CorridorGenSpec::narrowings`]): a cylinder or a box
+/// against one wall, at a random place along a leg at least half a width plus 0.3 m from its
+/// ends (the corners, the start and the goal), each with its centre and bounding radius.
+/// Draws nothing from `rng` when the spec asks for none, so that such corridors stay as they
+/// were.
+fn corridor_narrowings<R: rand::Rng>(
+    c: &CorridorGenSpec,
+    shape: &CorridorShape,
+    rng: &mut R,
+) -> Vec<(Obstacle, Vec2, f32)> {
+    if c.narrowings[1] == 0 {
+        return Vec::new();
+    }
+    let n = rng.random_range(c.narrowings[0]..=c.narrowings[1]);
+    let margin = 0.5 * shape.inner + 0.3;
+    let legs: Vec<(Vec2, Vec2)> = shape.route.windows(2).map(|w| (w[0], w[1])).collect();
+    let mut out = Vec::new();
+    for _ in 0..n {
+        let (a, b) = legs[rng.random_range(0..legs.len())];
+        let len = (b - a).length();
+        let gap = rng.random_range(c.narrowing_gap[0]..=c.narrowing_gap[1]);
+        let side = if rng.random_range(0.0..1.0f32) < 0.5 { -1.0 } else { 1.0 };
+        let round = rng.random_range(0.0..1.0f32) < 0.5;
+        let along_len = rng.random_range(0.2..=0.6f32);
+        let t = rng.random_range(0.0..=1.0f32);
+        // How far it stands out from the wall.
+        let depth = shape.inner - gap;
+        if len < 2.0 * margin || depth < 0.1 {
+            continue;
+        }
+        let e = (b - a) / len;
+        let normal = Vec2::new(-e.y, e.x) * side;
+        let at = a + e * (margin + t * (len - 2.0 * margin));
+        let centre = at + normal * (0.5 * shape.inner - 0.5 * depth);
+        let (spec, radius) = if round {
+            (ObstacleSpec::Circle { center: centre.into(), radius: 0.5 * depth }, 0.5 * depth)
+        } else {
+            let size = [along_len, depth];
+            (ObstacleSpec::Box { center: centre.into(), size, yaw: e.y.atan2(e.x) }, 0.5 * Vec2::from(size).length())
+        };
+        if let Ok(o) = Obstacle::new(spec) {
+            out.push((o, centre, radius));
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -1649,6 +1742,46 @@ mod tests {
         let (inside, _, _) = counts(4, 0.0);
         // Without corridors the start is rarely this close to a wall (measured 12-26 of 100).
         assert!(inside < 40, "{inside}/{n} starts near a wall at difficulty 0");
+    }
+
+    /// Narrowings stand against a wall of the corridor, off its corners, and leave a passage
+    /// of the drawn width to the opposite wall; a corridor too narrow for the passage gets
+    /// none, and a spec without narrowings draws nothing.
+    #[test]
+    fn narrowings_stand_against_a_wall_and_leave_the_passage() {
+        // An L: 4 m along x, then 3 m along y; 1.5 m between the walls' faces.
+        let shape = CorridorShape { route: vec![Vec2::ZERO, Vec2::new(4.0, 0.0), Vec2::new(4.0, 3.0)], inner: 1.5 };
+        let spec = CorridorGenSpec { narrowings: [3, 3], narrowing_gap: [0.7, 1.0], ..Default::default() };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        let mut n = 0;
+        for _ in 0..50 {
+            for (o, c, _) in corridor_narrowings(&spec, &shape, &mut rng) {
+                n += 1;
+                // The leg it stands on, and where along it.
+                let (a, e) = if c.y.abs() < 0.76 && c.x < 3.99 - 0.75 {
+                    (Vec2::ZERO, Vec2::X)
+                } else {
+                    (Vec2::new(4.0, 0.0), Vec2::Y)
+                };
+                let along = (c - a).dot(e);
+                let leg = if e == Vec2::X { 4.0 } else { 3.0 };
+                assert!(along >= 1.05 - 1e-3 && along <= leg - 1.05 + 1e-3, "{c} off the leg's ends");
+                let offset = (c - a).perp_dot(e);
+                let normal = Vec2::new(-e.y, e.x) * -offset.signum();
+                let at = a + e * along;
+                let w = World::new(vec![o]);
+                assert!(w.clearance(at + normal * 0.75).abs() < 1e-3, "{c} stands against its wall");
+                let gap = w.clearance(at - normal * 0.75);
+                assert!((0.7 - 1e-3..=1.0 + 1e-3).contains(&gap), "{c} leaves a {gap} m passage");
+            }
+        }
+        assert_eq!(n, 150, "three narrowings in each corridor");
+        let narrow = CorridorShape { inner: 0.75, ..shape };
+        assert!(corridor_narrowings(&spec, &narrow, &mut rng).is_empty(), "no room for a 0.7 m passage");
+        let none = CorridorGenSpec::default();
+        let before = rng.clone();
+        assert!(corridor_narrowings(&none, &narrow, &mut rng).is_empty());
+        assert_eq!(rng, before, "no narrowings, no draws");
     }
 
     /// Staggered doors sit at the partitions' ends on alternate sides: the way winds round the
