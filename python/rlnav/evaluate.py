@@ -80,6 +80,7 @@ def evaluate(
     name: str = "python",
     threads: int = 0,
     out: str | os.PathLike | None = None,
+    baseline_task: str | os.PathLike | None = None,
 ) -> Report:
     """Runs ``policy`` through a benchmark suite (``suite``: a shipped name such as
     ``heldout-static`` or a YAML file) or one scenario (``scenario``), then each of
@@ -94,6 +95,9 @@ def evaluate(
     model is called through ``predict(obs, deterministic=True)``; observation normalisation
     (``VecNormalize``) is the callable's to apply: :func:`rlnav.sb3.policy_fn` does both.
 
+    ``baseline_task`` is the task file the baselines run under, and the rest of the policy's
+    (time limit, collision range), as ``rlnav bench --task`` sets them (default the built-in
+    task): give it ``task``'s action ranges to compare like with like.
     ``episodes`` per scenario (default: the suite's; 20 for one scenario); ``robot`` replaces
     the scenarios' robot; with ``out`` the files ``rlnav bench --out`` writes (report.md,
     report.json, report.html, figures). Errors in the policy's output (shape, non-finite
@@ -120,5 +124,6 @@ def evaluate(
         baselines=list(baselines),
         name=name,
         out=None if out is None else os.fspath(out),
+        baseline_task=None if baseline_task is None else os.fspath(baseline_task),
     )
     return Report(markdown, json.loads(data))

@@ -40,6 +40,19 @@ def test_a_callable_runs_beside_the_baselines_on_the_same_scenes(tmp_path):
     assert r.success_rate("python") < r.success_rate("dwa")
 
 
+def test_the_baselines_run_under_the_baseline_task(tmp_path):
+    slow = tmp_path / "slow.yaml"
+    slow.write_text("action:\n  linear: [0.05, 0.15]\n  angular: [-0.5, 0.5]\n")
+    fast = rlnav.evaluate(turn_to_goal, scenario="empty-room", episodes=6, seed=3)
+    capped = rlnav.evaluate(turn_to_goal, scenario="empty-room", episodes=6, seed=3, baseline_task=slow)
+    # DWA keeps to the slower ranges; the Python policy keeps its own task.
+    assert capped.summary("dwa")["mean_speed"] <= 0.15 + 1e-3 < fast.summary("dwa")["mean_speed"]
+    assert capped.summary("python")["mean_speed"] == pytest.approx(fast.summary("python")["mean_speed"])
+    assert capped.summary("dwa")["mean_task_time"] > fast.summary("dwa")["mean_task_time"]
+    with pytest.raises(rlnav.RlnavError, match="no-such-task.yaml"):
+        rlnav.evaluate(turn_to_goal, scenario="empty-room", episodes=1, baseline_task=tmp_path / "no-such-task.yaml")
+
+
 def test_bad_policies_and_arguments_are_named():
     cases = [
         (lambda o: np.zeros((len(o), 3), np.float32), "must return shape (2, 2), got [2, 3]"),

@@ -5,7 +5,7 @@ use crate::{err, task_file};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use rlnav_bench::batch::BatchPolicy;
-use rlnav_bench::suite::{BatchEntry, RunOptions, SuiteSpec, run_suite_with, suite_setups};
+use rlnav_bench::suite::{BatchEntry, RunOptions, SuiteSpec, run_suite_with, suite_setups_under};
 use std::path::Path;
 
 /// A Python callable as a [`BatchPolicy`]: called with the GIL taken again for each batch.
@@ -59,11 +59,13 @@ fn format_py_err(py: Python<'_>, e: &PyErr) -> String {
 /// on the suite `suite` (a shipped name or a file) or on the one-scenario suite `scenario`,
 /// then the `baselines` (controller names as `rlnav bench --controller` takes them), each on
 /// the same seeded episodes. `task` (a task file) is the policy's observation, action and
-/// control period. With `out`, writes what `rlnav bench --out` writes (report.md,
+/// control period; `baseline_task` (a task file) is the task the baselines run under and the
+/// rest of the policy's (time limit, collision range), as `rlnav bench --task` sets them
+/// (default: the built-in task). With `out`, writes what `rlnav bench --out` writes (report.md,
 /// report.json, report.html, figures). Returns `(markdown, json)`: the suite's cells and
 /// episodes (no traces) and `pooled`, each controller's summary over the whole suite.
 #[pyfunction]
-#[pyo3(signature = (policy, suite=None, scenario=None, robot=None, task=None, episodes=None, seed=7, threads=0, baselines=Vec::new(), name="python".to_string(), out=None))]
+#[pyo3(signature = (policy, suite=None, scenario=None, robot=None, task=None, episodes=None, seed=7, threads=0, baselines=Vec::new(), name="python".to_string(), out=None, baseline_task=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate(
     py: Python<'_>,
@@ -78,6 +80,7 @@ pub fn evaluate(
     baselines: Vec<String>,
     name: String,
     out: Option<&str>,
+    baseline_task: Option<&str>,
 ) -> PyResult<(String, String)> {
     let spec = match (suite, scenario) {
         (Some(s), None) => SuiteSpec::load(s).map_err(err)?,
@@ -97,9 +100,16 @@ pub fn evaluate(
         return Err(err(format!("name: `{name}` is also a baseline's name; give the policy another")));
     }
     let task = task_file(task)?;
+    let base = task_file(baseline_task)?;
     let threads = if threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { threads };
-    let opts =
-        RunOptions { robot, episodes: episodes.unwrap_or(spec.episodes), seed, threads, record: None, task: None };
+    let opts = RunOptions {
+        robot,
+        episodes: episodes.unwrap_or(spec.episodes),
+        seed,
+        threads,
+        record: None,
+        task: Some(&base),
+    };
     let mut callable = PyPolicy(policy);
     let result = py
         .detach(|| {
@@ -120,7 +130,7 @@ pub fn evaluate(
         let dir = Path::new(dir);
         let io = |what: &Path, e: &dyn std::fmt::Display| err(format!("writing {}: {e}", what.display()));
         std::fs::create_dir_all(dir).map_err(|e| io(dir, &e))?;
-        let setups = suite_setups(&spec, robot).map_err(err)?;
+        let setups = suite_setups_under(&spec, robot, &base).map_err(err)?;
         rlnav_bench::plots::write_suite_figures(&result, &setups, dir).map_err(err)?;
         for (file, text) in [("report.md", markdown.clone()), ("report.json", json.to_string())] {
             std::fs::write(dir.join(file), text).map_err(|e| io(&dir.join(file), &e))?;
