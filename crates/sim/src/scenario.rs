@@ -380,6 +380,12 @@ fn scale_up(r: [f32; 2], d: f32) -> [f32; 2] {
     [r[0], r[0] + d * (r[1] - r[0])]
 }
 
+/// A range whose low end is the hard one (a narrow door or corridor) at difficulty `d`: the
+/// high end stays, the low end rises to it as `d` falls to 0.
+fn scale_down(r: [f32; 2], d: f32) -> [f32; 2] {
+    [r[1] - d * (r[1] - r[0]), r[1]]
+}
+
 /// A count range at difficulty `d` (see [`scale_up`]), the upper end rounded.
 fn scale_count(r: [u32; 2], d: f32) -> [u32; 2] {
     [r[0], r[0] + (d * (r[1] - r[0]) as f32).round() as u32]
@@ -404,7 +410,7 @@ impl GeneratorSpec {
             p.count = scale_count(p.count, d);
             p.thickness = scale_up(p.thickness, d);
             // Narrow doors are the hard ones.
-            p.door = [p.door[1] - d * (p.door[1] - p.door[0]), p.door[1]];
+            p.door = scale_down(p.door, d);
         }
         if let Some(c) = &mut g.concave {
             c.count = scale_count(c.count, d);
@@ -418,9 +424,9 @@ impl GeneratorSpec {
         if let Some(c) = &mut g.corridors {
             // Narrow corridors are the hard ones.
             c.probability *= d;
-            c.width = [c.width[1] - d * (c.width[1] - c.width[0]), c.width[1]];
+            c.width = scale_down(c.width, d);
             c.narrowings = scale_count(c.narrowings, d);
-            c.narrowing_gap = [c.narrowing_gap[1] - d * (c.narrowing_gap[1] - c.narrowing_gap[0]), c.narrowing_gap[1]];
+            c.narrowing_gap = scale_down(c.narrowing_gap, d);
         }
         if let Some(m) = &mut g.movers {
             m.count = scale_count(m.count, d);
@@ -1466,6 +1472,8 @@ fn corridor_walls<R: rand::Rng>(
 ) -> CorridorShape {
     let width = rng.random_range(c.width[0]..=c.width[1]);
     let thick = rng.random_range(c.thickness[0]..=c.thickness[1]);
+    // Thinner than 2 cm the walls are drawn as lines.
+    let lines = thick < 0.02;
     let overrun = rng.random_range(c.overrun[0]..=c.overrun[1]);
     let d = q - s;
     // Legs shorter than the width would fold the walls onto each other.
@@ -1489,8 +1497,7 @@ fn corridor_walls<R: rand::Rng>(
         }
     }
     route.push(q);
-    // Thinner than 2 cm the walls are drawn as lines (below).
-    let shape = CorridorShape { route: route.clone(), inner: width - if thick < 0.02 { 0.0 } else { thick } };
+    let shape = CorridorShape { route: route.clone(), inner: width - if lines { 0.0 } else { thick } };
     // Run the walls on past both ends.
     let n = route.len();
     let first = (route[1] - route[0]).normalize_or_zero();
@@ -1513,7 +1520,7 @@ fn corridor_walls<R: rand::Rng>(
         pts.push(route[n - 1] + normal(route[n - 2], route[n - 1]) * h);
         ends.push((pts[0], pts[pts.len() - 1]));
         for w in pts.windows(2) {
-            let spec = if thick < 0.02 {
+            let spec = if lines {
                 ObstacleSpec::Wall { from: w[0].into(), to: w[1].into() }
             } else {
                 // A box along the leg, lengthened by its thickness so that corners close.
@@ -1529,7 +1536,7 @@ fn corridor_walls<R: rand::Rng>(
     let close_goal = rng.random_range(0.0..1.0f32) < 0.5;
     let caps = [Some((ends[0].0, ends[1].0)), close_goal.then_some((ends[0].1, ends[1].1))];
     for (a, b) in caps.into_iter().flatten() {
-        let spec = if thick < 0.02 {
+        let spec = if lines {
             ObstacleSpec::Wall { from: a.into(), to: b.into() }
         } else {
             let e = b - a;
