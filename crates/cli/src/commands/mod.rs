@@ -41,12 +41,10 @@ impl EnvArgs {
     }
 
     /// [`Self::setup`] for `controller`: a policy runs under its own action ranges, control
-    /// period and plan (`rlnav_bench::controllers::task_for`) unless `--task` is given.
+    /// period and plan (`rlnav_bench::controllers::task_for`) on top of `--task`, as in
+    /// `rlnav bench`, so that a command shows the robot the policy was trained to drive.
     pub fn setup_for(&self, controller: &str) -> Result<Arc<EnvSetup>> {
         let setup = self.setup()?;
-        if self.task.is_some() {
-            return Ok(setup);
-        }
         let task = rlnav_bench::controllers::task_for(controller, &setup.task)?;
         if task == setup.task {
             return Ok(setup);
@@ -86,4 +84,27 @@ pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
     let template = format!("{{bar:30}} {{pos}}/{{len}} {what} [{{elapsed_precise}} eta {{eta}}] {{msg}}");
     bar.set_style(indicatif::ProgressStyle::with_template(&template).expect("a valid template"));
     bar
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--task` sets what a policy's contract does not (here the time limit); the policy keeps
+    /// its contract's action ranges, and a classical controller takes the file's.
+    #[test]
+    fn a_policy_keeps_its_action_ranges_under_task() {
+        let dir = std::env::temp_dir().join(format!("rlnav-setup-for-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("task.yaml");
+        std::fs::write(&file, "max_steps: 321\naction:\n  linear: [0.0, 0.3]\n").unwrap();
+        let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/default.onnx");
+        let args = EnvArgs { scenario: "static-room".into(), robot: Some("jetbot".into()), task: Some(file) };
+        let rl = args.setup_for(&format!("rl:{policy}")).unwrap();
+        assert_eq!(rl.task.max_steps, 321);
+        assert_eq!(rl.task.action.linear, [0.1, 0.5], "the contract's ranges");
+        let dwa = args.setup_for("dwa").unwrap();
+        assert_eq!((dwa.task.max_steps, dwa.task.action.linear), (321, [0.0, 0.3]));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
