@@ -88,6 +88,11 @@ pub struct PpoConfig {
     /// surrogate can gain from ever wider noise (samples beyond a bound act as the bound),
     /// and the policy then trains on near-random commands while it is judged on its mean.
     pub max_log_std: Option<LogStdCeiling>,
+    /// Score sampled actions as the robot executes them, clipped to ±1: a sample beyond a
+    /// bound has the probability of the Gaussian's tail beyond it (Clipped Action Policy
+    /// Gradient, Fujita & Maeda 2018), which removes the surrogate's gain from wider noise
+    /// without capping σ. Default false (the Gaussian density, as rl_games).
+    pub clipped_actions: bool,
     /// Running observation normalisation.
     pub normalize_input: bool,
     /// Running value (return) normalisation.
@@ -191,6 +196,7 @@ impl Default for PpoConfig {
             entropy_coef: 0.0,
             bounds_loss_coef: 0.0001,
             max_log_std: None,
+            clipped_actions: false,
             normalize_input: true,
             normalize_value: true,
             normalize_advantage: true,

@@ -28,6 +28,47 @@ pub(crate) const HALF_LN_2PI: f32 = 0.918_938_5;
 /// Action means beyond this are penalised by the bounds loss (rl_games' soft bound).
 pub(crate) const SOFT_BOUND: f32 = 1.1;
 
+/// The log-probability of action component `a` under `N(mu, exp(log_std))` and its
+/// derivatives with respect to `mu` and `log_std`: `(log p, ∂/∂mu, ∂/∂log_std)`.
+///
+/// With `clipped`, `a` is scored as the robot executes it, clipped to `[-1, 1]` (Clipped
+/// Action Policy Gradient, Fujita & Maeda 2018): a sample at or beyond a bound has the
+/// probability of the whole tail beyond it. Scored as a density instead, a sample beyond a
+/// bound acts as the bound whatever its distance, and the surrogate gains from ever wider
+/// noise (the learned σ then grows past 1 with no entropy bonus).
+pub(crate) fn action_log_prob(a: f32, mu: f32, log_std: f32, clipped: bool) -> (f32, f32, f32) {
+    let std = log_std.exp();
+    if clipped && (a >= 1.0 || a <= -1.0) {
+        // Upper tail: ln Q(u), u = (1 - mu)/σ. Lower tail: ln Φ(l) = ln Q(-l), l = (-1 - mu)/σ.
+        let upper = a >= 1.0;
+        let t = if upper { (1.0 - mu) / std } else { (1.0 + mu) / std };
+        let (log_q, hazard) = log_upper_tail(t as f64);
+        let (log_q, hazard) = (log_q as f32, hazard as f32);
+        // ∂ ln Q(t)/∂t = -hazard; ∂t/∂mu = ∓1/σ; ∂t/∂log σ = -t.
+        let d_mu = if upper { hazard / std } else { -hazard / std };
+        return (log_q, d_mu, hazard * t);
+    }
+    let z = (a - mu) / std;
+    (-0.5 * z * z - log_std - HALF_LN_2PI, z / std, z * z - 1.0)
+}
+
+/// `ln Q(t)` for the standard normal's upper tail `Q(t) = P(X > t)`, and its hazard
+/// `φ(t)/Q(t)`, accurate far into the tail (where `1 - Φ(t)` rounds to zero).
+fn log_upper_tail(t: f64) -> (f64, f64) {
+    const HALF_LN_2PI_64: f64 = 0.918_938_533_204_672_7;
+    let log_phi = -0.5 * t * t - HALF_LN_2PI_64;
+    if t < 25.0 {
+        let q = 0.5 * libm::erfc(t / std::f64::consts::SQRT_2);
+        let log_q = q.ln();
+        (log_q, (log_phi - log_q).exp())
+    } else {
+        // Asymptotic series: Q(t) ≈ φ(t)/t · (1 - 1/t² + 3/t⁴).
+        let s = 1.0 - 1.0 / (t * t) + 3.0 / t.powi(4);
+        let log_q = log_phi - t.ln() + s.ln();
+        (log_q, t / s)
+    }
+}
+
 /// What one update measured (means over minibatches).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct UpdateStats {
@@ -168,8 +209,22 @@ pub(crate) fn burn_loss(
         ((mu.clone() - target).powf_scalar(2.0).sum_dim(1).squeeze_dim::<1>(1) * mask).sum() / n as f32
     });
     let log_std2 = log_std.clone().unsqueeze::<2>();
-    let z = (actions - mu.clone()) / log_std2.clone().exp();
-    let logp: Tensor<1> = (z.powf_scalar(2.0) * -0.5 - log_std2 - HALF_LN_2PI).sum_dim(1).squeeze_dim(1);
+    let std2 = log_std2.clone().exp();
+    let z = (actions.clone() - mu.clone()) / std2.clone();
+    let mut logp2 = z.powf_scalar(2.0) * -0.5 - log_std2 - HALF_LN_2PI;
+    if cfg.clipped_actions {
+        // The tails' masses (see `action_log_prob`): ln Q(t) = ln ½ + ln(1 - erf(t/√2)), floored
+        // where f32's erf rounds to one (the hand-written learner is exact there).
+        let log_tail = |t: Tensor<2>| {
+            ((t * std::f32::consts::FRAC_1_SQRT_2).erf().neg() + 1.0).clamp_min(1e-30).log() - std::f32::consts::LN_2
+        };
+        let upper = log_tail((mu.clone().neg() + 1.0) / std2.clone());
+        let lower = log_tail((mu.clone() + 1.0) / std2);
+        logp2 = logp2
+            .mask_where(actions.clone().greater_equal_elem(1.0), upper)
+            .mask_where(actions.lower_equal_elem(-1.0), lower);
+    }
+    let logp: Tensor<1> = logp2.sum_dim(1).squeeze_dim(1);
     let ratio = (logp - old_log_probs).exp();
     let e = cfg.e_clip;
     let surr = (ratio.clone() * adv.clone()).min_pair(ratio.clone().clamp(1.0 - e, 1.0 + e) * adv);
@@ -359,6 +414,7 @@ impl Ppo {
         let log_std: Vec<f32> = to_vec(net.log_std.val());
         let std: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
         let mut actions = vec![[0.0f32; 2]; n];
+        let clipped = self.cfg.clipped_actions;
         let units = net.lstm_units();
         self.sim_s = 0.0;
         let mut truncated: Vec<usize> = Vec::with_capacity(n);
@@ -388,7 +444,11 @@ impl Ppo {
                     let act = mu[e * a + j] + std[j] * eps;
                     self.buffer.actions[i * a + j] = act;
                     self.buffer.mus[i * a + j] = mu[e * a + j];
-                    logp += -0.5 * eps * eps - log_std[j] - HALF_LN_2PI;
+                    logp += if clipped {
+                        action_log_prob(act, mu[e * a + j], log_std[j], true).0
+                    } else {
+                        -0.5 * eps * eps - log_std[j] - HALF_LN_2PI
+                    };
                     if j < 2 {
                         actions[e][j] = act;
                     }
@@ -496,6 +556,7 @@ impl Ppo {
             entropy_coef: self.cfg.entropy_coef,
             bounds_loss_coef: self.cfg.bounds_loss_coef,
             teacher_coef: self.teacher_weight,
+            clipped_actions: self.cfg.clipped_actions,
         };
         let teach = self.teacher_weight > 0.0;
         let mut stats = UpdateStats::default();
@@ -721,6 +782,12 @@ mod tests {
     /// and whose samples at the mean did badly: the update widens the noise, up to
     /// `train.max_log_std` when it is set, on either learner.
     fn log_std_after_update(learner: Learner, max_log_std: Option<LogStdCeiling>, epoch: usize) -> Vec<f32> {
+        let cfg = PpoConfig { max_log_std, ..Default::default() };
+        log_std_after(learner, cfg, 1.0, epoch)
+    }
+
+    /// [`log_std_after_update`]'s epoch with `cfg`'s options and the far samples at `±far`.
+    fn log_std_after(learner: Learner, cfg: PpoConfig, far_action: f32, epoch: usize) -> Vec<f32> {
         let cfg = PpoConfig {
             num_actors: 8,
             horizon_length: 16,
@@ -728,17 +795,16 @@ mod tests {
             mini_epochs: 4,
             learning_rate: 0.01,
             lr_schedule: LrSchedule::Linear,
-            max_log_std,
             learner,
             threads: 1,
-            ..Default::default()
+            ..cfg
         };
         let network = NetworkConfig { hidden: vec![8], init_log_std: -1.0, ..Default::default() };
         let mut ppo = Ppo::new(&cfg, &network, 3, 2, rlnav_policy::training_device(), 1);
         let b = &mut ppo.buffer;
         for i in 0..b.log_probs.len() {
             let far = i % 2 == 0;
-            let a = if far { if i % 4 == 0 { 1.0 } else { -1.0 } } else { 0.0 };
+            let a = if far { if i % 4 == 0 { far_action } else { -far_action } } else { 0.0 };
             b.obs[i * 3..(i + 1) * 3].copy_from_slice(&[0.1 * (i % 5) as f32, 0.2, -0.3]);
             b.actions[i * 2..(i + 1) * 2].copy_from_slice(&[a, -a]);
             // An old log-probability far above the new one keeps every ratio below the clip
@@ -771,5 +837,54 @@ mod tests {
             let ppo = Ppo::new(&cfg, &NetworkConfig::default(), 3, 2, rlnav_policy::training_device(), 1);
             assert_eq!(to_vec(ppo.model().log_std.val()), vec![-1.5, -1.5]);
         }
+    }
+
+    /// With `train.clipped_actions` a sample is scored as the robot executes it: samples at
+    /// ±1 and at ±3 (both executed as ±1) give the same update, on either learner; scored as
+    /// densities, they do not.
+    #[test]
+    fn clipped_actions_score_what_the_robot_executes() {
+        for learner in [Learner::Fast, Learner::Burn] {
+            let run = |clipped_actions, far| {
+                log_std_after(learner, PpoConfig { clipped_actions, ..Default::default() }, far, 0)
+            };
+            let (at, beyond) = (run(true, 1.0), run(true, 3.0));
+            for (a, b) in at.iter().zip(&beyond) {
+                assert!((a - b).abs() < 1e-5, "{learner:?}: clipped: {at:?} vs {beyond:?}");
+            }
+            let (at, beyond) = (run(false, 1.0), run(false, 3.0));
+            assert!(
+                at.iter().zip(&beyond).all(|(a, b)| (a - b).abs() > 0.01),
+                "{learner:?}: density: {at:?} vs {beyond:?}"
+            );
+        }
+    }
+
+    /// The tail log-probability and its derivatives agree with central differences, on both
+    /// sides, near the bound and far into the tail (where `1 - Φ` rounds to zero in f32).
+    #[test]
+    fn action_log_prob_derivatives_match_differences() {
+        let h = 1e-3f32;
+        for &(a, mu, log_std) in
+            &[(1.3, 0.2, -0.5), (-2.0, 0.4, -1.0), (1.0, 1.4, 0.1), (-1.0, 0.9, -2.5), (0.3, -0.2, -0.7)]
+        {
+            let (lp, d_mu, d_ls) = action_log_prob(a, mu, log_std, true);
+            assert!(lp.is_finite() && lp <= 0.5, "{a} {mu} {log_std}: {lp}");
+            let num_mu =
+                (action_log_prob(a, mu + h, log_std, true).0 - action_log_prob(a, mu - h, log_std, true).0) / (2.0 * h);
+            let num_ls =
+                (action_log_prob(a, mu, log_std + h, true).0 - action_log_prob(a, mu, log_std - h, true).0) / (2.0 * h);
+            let tol = |x: f32| 2e-2 * (1.0 + x.abs());
+            assert!((num_mu - d_mu).abs() < tol(d_mu), "{a} {mu} {log_std}: d/dmu {d_mu} vs {num_mu}");
+            assert!((num_ls - d_ls).abs() < tol(d_ls), "{a} {mu} {log_std}: d/dlogstd {d_ls} vs {num_ls}");
+        }
+        // Far into the tail: ln Q(t) ≈ -t²/2 - ln(t √(2π)), hazard ≈ t; continuous at the switch.
+        let (lq, hz) = log_upper_tail(40.0);
+        assert!((lq - (-800.0 - (40.0f64).ln() - 0.918_938_533)).abs() < 1e-2 && (hz - 40.0).abs() < 0.1);
+        let (below, above) = (log_upper_tail(25.0 - 1e-9), log_upper_tail(25.0));
+        assert!((below.0 - above.0).abs() < 1e-6 && (below.1 - above.1).abs() < 1e-4, "{below:?} {above:?}");
+        // A sample inside the bounds keeps the Gaussian density.
+        let (lp, _, _) = action_log_prob(0.3, -0.2, -0.7, false);
+        assert_eq!(lp, action_log_prob(0.3, -0.2, -0.7, true).0);
     }
 }
