@@ -41,6 +41,7 @@
 pub mod barn;
 pub mod config;
 pub mod controller;
+pub mod escape;
 pub mod geometry;
 pub mod lidar;
 pub mod map;

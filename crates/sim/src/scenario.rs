@@ -731,7 +731,13 @@ pub struct Scenario {
     cells: Option<Arc<CellPlacement>>,
     clearance: f32,
     start_clearance: f32,
+    /// The tightest circle the robot drives (m, 0: it turns on the spot); start headings it
+    /// cannot leave are redrawn ([`crate::escape`]).
+    turning_radius: f32,
 }
+
+/// Headings tried at a start position before it is given up as one the robot cannot leave.
+const HEADING_TRIES: usize = 16;
 
 /// Grid cell size for reachability checks (m).
 const GRID_RESOLUTION: f32 = 0.05;
@@ -799,6 +805,7 @@ impl Scenario {
             cells: None,
             clearance,
             start_clearance: clearance + start_extra.max(0.0),
+            turning_radius: start_extra.max(0.0),
         };
         // Fail at load time, with the file named, rather than at the first reset.
         let no_pair = |reason: String| ConfigError::Invalid {
@@ -846,6 +853,17 @@ impl Scenario {
     }
 
     /// Whether a start or goal may be placed at `p`: on a map, only known-free cells.
+    /// `start`, or the same position with a redrawn heading, such that a robot that cannot
+    /// turn on the spot can leave it ([`crate::escape::can_leave`]); `None` when no heading
+    /// tried can be left. A heading fixed by the scenario (`poses`) is kept as it is.
+    fn leavable_heading<R: rand::Rng>(&self, world: &World, start: Pose2, rng: &mut R) -> Option<Pose2> {
+        let can_leave = |p: Pose2| crate::escape::can_leave(world, p, self.turning_radius, self.clearance);
+        if matches!(self.spec.start, Placement::Poses(_)) || can_leave(start) {
+            return Some(start);
+        }
+        (0..HEADING_TRIES).map(|_| Pose2::new(start.x, start.y, rng.random_range(-PI..PI))).find(|&p| can_leave(p))
+    }
+
     fn placeable(&self, world: &World, p: Vec2) -> bool {
         world.grid().is_none_or(|g| g.is_known_free(p))
     }
@@ -966,12 +984,18 @@ impl Scenario {
                         && self.placeable(&world, start.position())
                         && self.placeable(&world, goal)
                         && (!self.spec.require_path || grid.connected(start.position(), goal));
-                    if ok { Ok((start, goal)) } else { Err("generated obstacles cut the start from the goal".into()) }
+                    match self.leavable_heading(&world, start, rng) {
+                        Some(start) if ok => Ok((start, goal)),
+                        _ => Err("generated obstacles cut the start from the goal".into()),
+                    }
                 }
-                (Some(cells), None) => {
-                    let (start, goal) = cells.sample(rng);
-                    Ok((Pose2::new(start.x, start.y, rng.random_range(-PI..PI)), goal))
-                }
+                (Some(cells), None) => (0..PLACEMENT_TRIES)
+                    .find_map(|_| {
+                        let (start, goal) = cells.sample(rng);
+                        let start = Pose2::new(start.x, start.y, rng.random_range(-PI..PI));
+                        self.leavable_heading(&world, start, rng).map(|s| (s, goal))
+                    })
+                    .ok_or_else(|| "no start heading the robot can leave".to_string()),
                 (None, None) => self.place(&world, &grid, rng),
             };
             match placed {
@@ -1126,6 +1150,7 @@ impl Scenario {
             {
                 continue;
             }
+            let Some(start) = self.leavable_heading(world, start, rng) else { continue };
             free_start += 1;
             for _ in 0..PLACEMENT_TRIES / 4 {
                 let goal = self.draw(&self.spec.goal, rng).position();
@@ -1855,6 +1880,34 @@ mod tests {
         let spec: ScenarioSpec = crate::config::from_yaml_str("split.yaml", yaml).unwrap();
         let err = Scenario::new(spec, 0.2, 0.0).unwrap_err().to_string();
         assert!(err.contains("<scenario split>") && err.contains("no goal reachable"), "{err}");
+    }
+
+    /// A robot that cannot turn on the spot starts at the closed end of a 1.2 m corridor:
+    /// every drawn start is one it can leave, whatever heading it was first drawn with, the
+    /// headings still spread, and a robot that may stop keeps the first heading drawn.
+    #[test]
+    fn starts_at_a_dead_end_face_a_way_out() {
+        let yaml = "name: end\narena: {size: [7, 7]}\nobstacles:\n  - wall: {from: [-3.5, -2.3], to: [3.5, -2.3]}\n\
+                    start: {region: {min: [-3.1, -3.1], max: [-2.7, -2.7]}}\n\
+                    goal: {region: {min: [2.7, -3.1], max: [3.1, -2.7]}}\nstart_goal_distance: [5, 7]\n";
+        let spec: ScenarioSpec = crate::config::from_yaml_str("end.yaml", yaml).unwrap();
+        let (clearance, r) = (0.25, 0.2);
+        let cannot_stop = Scenario::new(spec.clone(), clearance, r).unwrap();
+        let may_stop = Scenario::new(spec, clearance, 0.0).unwrap();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(11);
+        let (mut cos, mut sin, mut trapped) = (0.0f32, 0.0f32, 0);
+        for _ in 0..60 {
+            let e = cannot_stop.sample(&mut rng).unwrap();
+            assert!(crate::escape::can_leave(&e.world, e.start, r, clearance), "{:?}", e.start);
+            (cos, sin) = (cos + e.start.yaw.cos(), sin + e.start.yaw.sin());
+            let free = may_stop.sample(&mut rng).unwrap();
+            trapped += usize::from(!crate::escape::can_leave(&free.world, free.start, r, clearance));
+        }
+        // Drawn uniformly, a share of the headings face the end or a wall: they are redrawn.
+        assert!(trapped >= 3, "{trapped} of 60 headings trap a robot that cannot stop");
+        // The kept headings are not all one way: their mean resultant length is well below 1.
+        let resultant = (cos * cos + sin * sin).sqrt() / 60.0;
+        assert!(resultant < 0.8, "mean resultant length {resultant}");
     }
 
     /// Obstacles left off the map stand in the world but not in the map the plan is made on:
