@@ -4,8 +4,10 @@
 //! With `--lstm UNITS` the network has an LSTM in front and minibatches are `--seq`-step
 //! sequences (the dynamic config: `--lstm 64 --seq 8 --rows 2048 --envs 64`).
 //!
+//! `--clipped-actions` scores the actions as `train.clipped_actions` does.
+//!
 //! `cargo run --release -p rlnav-train --example learner_speed [-- --hidden 128,64 --threads 2
-//! --rows 4096 --envs 128 --lstm 0 --seq 8]`
+//! --rows 4096 --envs 128 --lstm 0 --seq 8 --clipped-actions]`
 
 use burn::prelude::*;
 use rand::{RngExt, SeedableRng};
@@ -65,6 +67,7 @@ fn main() {
         entropy_coef: 0.0,
         bounds_loss_coef: 1e-4,
         teacher_coef: 0.0,
+        clipped_actions: args.iter().any(|a| a == "--clipped-actions"),
     };
     let (mut step_ms, mut infer_us) = (Vec::new(), Vec::new());
     for _ in 0..40 {
