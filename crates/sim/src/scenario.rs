@@ -730,9 +730,8 @@ pub struct Scenario {
     /// its bounds and keeping the good ones misses too often).
     cells: Option<Arc<CellPlacement>>,
     clearance: f32,
-    start_clearance: f32,
-    /// The tightest circle the robot drives (m, 0: it turns on the spot); start headings it
-    /// cannot leave are redrawn ([`crate::escape`]).
+    /// The tightest circle the robot drives (m, 0: it turns on the spot): starts keep this
+    /// much more room, and start headings it cannot leave are redrawn ([`crate::escape`]).
     turning_radius: f32,
 }
 
@@ -804,7 +803,6 @@ impl Scenario {
             plan_field: std::sync::OnceLock::new(),
             cells: None,
             clearance,
-            start_clearance: clearance + start_extra.max(0.0),
             turning_radius: start_extra.max(0.0),
         };
         // Fail at load time, with the file named, rather than at the first reset.
@@ -852,7 +850,6 @@ impl Scenario {
         }
     }
 
-    /// Whether a start or goal may be placed at `p`: on a map, only known-free cells.
     /// `start`, or the same position with a redrawn heading, such that a robot that cannot
     /// turn on the spot can leave it ([`crate::escape::can_leave`]); `None` when no heading
     /// tried can be left. A heading fixed by the scenario (`poses`) is kept as it is.
@@ -864,6 +861,7 @@ impl Scenario {
         (0..HEADING_TRIES).map(|_| Pose2::new(start.x, start.y, rng.random_range(-PI..PI))).find(|&p| can_leave(p))
     }
 
+    /// Whether a start or goal may be placed at `p`: on a map, only known-free cells.
     fn placeable(&self, world: &World, p: Vec2) -> bool {
         world.grid().is_none_or(|g| g.is_known_free(p))
     }
@@ -878,13 +876,13 @@ impl Scenario {
             if (self.spec.require_path && label == 0) || !self.placeable(world, p) {
                 return None;
             }
-            let start = self.spec.start.admits(p) && clear(p, self.start_clearance);
+            let start = self.spec.start.admits(p) && clear(p, self.start_clearance());
             let goal = self.spec.goal.admits(p) && (start || clear(p, self.clearance));
             // Without a path requirement every place is one region.
             let region = if self.spec.require_path { label } else { 1 };
             (start || goal).then_some(Candidate { position: p, region, start, goal })
         });
-        CellPlacement::new(candidates, self.spec.start_goal_distance, [self.start_clearance, self.clearance])
+        CellPlacement::new(candidates, self.spec.start_goal_distance, [self.start_clearance(), self.clearance])
     }
 
     /// Moves a goal by `velocity * dt`, reflecting off the placement area's edges (less the
@@ -944,13 +942,13 @@ impl Scenario {
 
     /// Free space required around the robot's centre at the start.
     pub fn start_clearance(&self) -> f32 {
-        self.start_clearance
+        self.clearance + self.turning_radius
     }
 
     /// The same scenario, compiled for the same robot, at difficulty `d` in [0, 1]
     /// ([`ScenarioSpec::at_difficulty`]).
     pub fn at_difficulty(&self, d: f32) -> Result<Self, ConfigError> {
-        Self::new(self.spec.at_difficulty(d), self.clearance, self.start_clearance - self.clearance)
+        Self::new(self.spec.at_difficulty(d), self.clearance, self.turning_radius)
     }
 
     /// Draws one episode: a world (generated if the scenario has a generator), and a start and
@@ -979,14 +977,14 @@ impl Scenario {
             };
             let placed = match (&self.cells, anchors) {
                 (_, Some((start, goal))) => {
-                    let ok = world.is_clear(start.position(), self.start_clearance)
+                    let ok = world.is_clear(start.position(), self.start_clearance())
                         && world.is_clear(goal, self.clearance)
                         && self.placeable(&world, start.position())
                         && self.placeable(&world, goal)
                         && (!self.spec.require_path || grid.connected(start.position(), goal));
-                    match self.leavable_heading(&world, start, rng) {
-                        Some(start) if ok => Ok((start, goal)),
-                        _ => Err("generated obstacles cut the start from the goal".into()),
+                    match ok.then(|| self.leavable_heading(&world, start, rng)).flatten() {
+                        Some(start) => Ok((start, goal)),
+                        None => Err("generated obstacles cut the start from the goal".into()),
                     }
                 }
                 (Some(cells), None) => (0..PLACEMENT_TRIES)
@@ -1145,7 +1143,7 @@ impl Scenario {
             let start = self.draw(&self.spec.start, rng);
             let reachable = !self.spec.require_path || grid.label(start.position()) != 0;
             if !reachable
-                || !world.is_clear(start.position(), self.start_clearance)
+                || !world.is_clear(start.position(), self.start_clearance())
                 || !self.placeable(world, start.position())
             {
                 continue;
@@ -1166,7 +1164,7 @@ impl Scenario {
             }
         }
         Err(if free_start == 0 {
-            format!("no start position with {:.2} m clearance", self.start_clearance)
+            format!("no start position with {:.2} m clearance", self.start_clearance())
         } else {
             format!("no goal reachable from the start between {dmin} and {dmax} m away")
         })
@@ -1255,7 +1253,7 @@ impl Scenario {
                 let side = Vec2::new(-back.y, back.x);
                 let (half_w, depth) = (0.5 * arm.max(0.8), 0.8 * arm);
                 let bound = half_w.hypot(depth) + th;
-                let keep = (centre - s).length() >= bound + self.start_clearance + 0.05
+                let keep = (centre - s).length() >= bound + self.start_clearance() + 0.05
                     && (centre - q).length() >= bound + self.clearance + 0.05;
                 if !keep {
                     continue;
@@ -1282,7 +1280,7 @@ impl Scenario {
             |p: Vec2, r: f32| self.area.contains(p) && self.fixed.iter().all(|o| o.primitive.signed_distance(p) >= r);
         for _ in 0..PLACEMENT_TRIES {
             let start = self.draw(&self.spec.start, rng);
-            if !clear(start.position(), self.start_clearance) {
+            if !clear(start.position(), self.start_clearance()) {
                 continue;
             }
             for _ in 0..PLACEMENT_TRIES / 4 {
@@ -1336,7 +1334,7 @@ impl Scenario {
         // Keeps generated obstacles off the start and the goal.
         let keep_out = |c: Vec2, r: f32| {
             anchors.is_none_or(|(s, q)| {
-                (c - s).length() >= r + self.start_clearance + 0.05 && (c - q).length() >= r + self.clearance + 0.05
+                (c - s).length() >= r + self.start_clearance() + 0.05 && (c - q).length() >= r + self.clearance + 0.05
             })
         };
         // A corridor replaces the structures across the line (they would block it).

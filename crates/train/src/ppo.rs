@@ -444,11 +444,7 @@ impl Ppo {
                     let act = mu[e * a + j] + std[j] * eps;
                     self.buffer.actions[i * a + j] = act;
                     self.buffer.mus[i * a + j] = mu[e * a + j];
-                    logp += if clipped {
-                        action_log_prob(act, mu[e * a + j], log_std[j], true).0
-                    } else {
-                        -0.5 * eps * eps - log_std[j] - HALF_LN_2PI
-                    };
+                    logp += action_log_prob(act, mu[e * a + j], log_std[j], clipped).0;
                     if j < 2 {
                         actions[e][j] = act;
                     }
