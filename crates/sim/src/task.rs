@@ -1341,12 +1341,14 @@ mod tests {
             ObsTerm::History {
                 term: Box::new(ObsTerm::GoalDistance),
                 steps: 3,
+                stride: 1,
                 order: HistoryOrder::OldestFirst,
                 fill: HistoryFill::First,
             },
             ObsTerm::History {
                 term: Box::new(ObsTerm::Linear),
                 steps: 2,
+                stride: 1,
                 order: HistoryOrder::NewestFirst,
                 fill: HistoryFill::Zero,
             },

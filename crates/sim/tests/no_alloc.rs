@@ -67,6 +67,7 @@ fn stepping_does_not_allocate() {
     let history = |term| ObsTerm::History {
         term: Box::new(term),
         steps: 5,
+        stride: 2,
         order: HistoryOrder::OldestFirst,
         fill: HistoryFill::First,
     };
