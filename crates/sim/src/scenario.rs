@@ -339,6 +339,12 @@ pub struct MoverGenSpec {
     /// How each mover moves relative to the start–goal line, drawn uniformly per mover
     /// (default `[cross]`, the article's task).
     pub patterns: Vec<MotionPattern>,
+    /// Keep every mover's path in free space (default false: straight paths that may run
+    /// through walls, the article's task). A path is cut where it would meet a static
+    /// obstacle, and keeps the start and goal clear, so that a cart comes down a corridor or
+    /// crosses it from wall to wall, as real traffic does, instead of out of a wall where no
+    /// robot could see it coming. A mover with no free path of at least 0.5 m is left out.
+    pub free_paths: bool,
 }
 
 impl Default for MoverGenSpec {
@@ -349,6 +355,7 @@ impl Default for MoverGenSpec {
             size: [0.3, 0.5],
             travel: [2.0, 4.0],
             patterns: vec![MotionPattern::Cross],
+            free_paths: false,
         }
     }
 }
@@ -998,7 +1005,7 @@ impl Scenario {
             };
             match placed {
                 Ok((start, goal)) => {
-                    let movers = self.draw_movers(start.position(), goal, rng);
+                    let movers = self.draw_movers(&world, start.position(), goal, rng);
                     let people = self.draw_people(&world, start.position(), goal, rng);
                     let goal_velocity = match &self.spec.goal_motion {
                         Some(m) => {
@@ -1086,7 +1093,7 @@ impl Scenario {
     }
 
     /// The scenario's movers plus generated ones crossing the start–goal line.
-    fn draw_movers<R: rand::Rng>(&self, start: Vec2, goal: Vec2, rng: &mut R) -> Vec<Mover> {
+    fn draw_movers<R: rand::Rng>(&self, world: &World, start: Vec2, goal: Vec2, rng: &mut R) -> Vec<Mover> {
         let mut movers: Vec<Mover> = self.spec.movers.iter().map(|m| m.instantiate(rng)).collect();
         if let Some(g) = self.spec.procedural.as_ref().and_then(|p| p.movers.as_ref()) {
             let line = goal - start;
@@ -1096,27 +1103,29 @@ impl Scenario {
                     let a = self.area;
                     Vec2::new(p.x.clamp(a.min.x + 0.3, a.max.x - 0.3), p.y.clamp(a.min.y + 0.3, a.max.y - 0.3))
                 };
-                let pattern = g.patterns[rng.random_range(0..g.patterns.len())];
-                let (a, b) = match pattern {
-                    MotionPattern::Cross => {
-                        let centre = start + line * rng.random_range(0.3..=0.7f32);
-                        let half = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
-                        (clamp(centre - normal * half), clamp(centre + normal * half))
-                    }
-                    // Along the line, a little off it: from the goal's end or the start's.
-                    MotionPattern::HeadOn | MotionPattern::Group | MotionPattern::SameWay => {
-                        let off = normal * rng.random_range(-0.3..=0.3f32);
-                        let (near, far) = (start + line * 0.2 + off, start + line * 0.95 + off);
-                        if pattern == MotionPattern::SameWay {
-                            (clamp(near), clamp(far))
-                        } else {
-                            (clamp(far), clamp(near))
+                let path = if g.free_paths {
+                    self.free_mover_path(g, world, start, goal, rng)
+                } else {
+                    let pattern = g.patterns[rng.random_range(0..g.patterns.len())];
+                    Some(match pattern {
+                        MotionPattern::Cross => {
+                            let centre = start + line * rng.random_range(0.3..=0.7f32);
+                            let half = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
+                            (clamp(centre - normal * half), clamp(centre + normal * half))
                         }
-                    }
+                        // Along the line, a little off it: from the goal's end or the start's.
+                        MotionPattern::HeadOn | MotionPattern::Group | MotionPattern::SameWay => {
+                            let off = normal * rng.random_range(-0.3..=0.3f32);
+                            let (near, far) = (start + line * 0.2 + off, start + line * 0.95 + off);
+                            if pattern == MotionPattern::SameWay {
+                                (clamp(near), clamp(far))
+                            } else {
+                                (clamp(far), clamp(near))
+                            }
+                        }
+                    })
                 };
-                if (a - b).length() < 1e-3 {
-                    continue;
-                }
+                let Some((a, b)) = path.filter(|(a, b)| (*a - *b).length() >= 1e-3) else { continue };
                 let side = rng.random_range(g.size[0]..=g.size[1]);
                 let spec = MoverSpec {
                     shape: MoverShape::Box { size: [side, side] },
@@ -1129,6 +1138,76 @@ impl Scenario {
             }
         }
         movers
+    }
+
+    /// A generated mover's path in free space (`free_paths`): drawn as without it, then cut
+    /// where the largest box would meet a static obstacle or come near the start or the goal;
+    /// a few draws, `None` when none leaves 0.5 m.
+    fn free_mover_path<R: rand::Rng>(
+        &self,
+        g: &MoverGenSpec,
+        world: &World,
+        start: Vec2,
+        goal: Vec2,
+        rng: &mut R,
+    ) -> Option<(Vec2, Vec2)> {
+        const STEP: f32 = 0.05;
+        let line = goal - start;
+        let (length, along) = (line.length(), line.normalize_or_zero());
+        let normal = Vec2::new(-along.y, along.x);
+        // The largest box's half-diagonal, and a margin for the turning box's corners.
+        let half = g.size[1] * std::f32::consts::FRAC_1_SQRT_2 + 0.05;
+        let keep_start = half + self.start_clearance() + 0.1;
+        let keep_goal = half + self.clearance + 0.1;
+        let ok = |p: Vec2| {
+            self.area.contains(p)
+                && world.is_clear(p, half)
+                && (p - start).length() >= keep_start
+                && (p - goal).length() >= keep_goal
+        };
+        // From `centre`, as far as `reach` each way along `dir` while free.
+        let extend = |centre: Vec2, dir: Vec2, reach: [f32; 2]| {
+            let mut ends = [centre, centre];
+            for (end, (sign, r)) in ends.iter_mut().zip([(-1.0f32, reach[0]), (1.0, reach[1])]) {
+                let mut d = STEP;
+                while d <= r && ok(centre + dir * (sign * d)) {
+                    *end = centre + dir * (sign * d);
+                    d += STEP;
+                }
+            }
+            (ends[0], ends[1])
+        };
+        for _ in 0..20 {
+            let pattern = g.patterns[rng.random_range(0..g.patterns.len())];
+            let (a, b) = match pattern {
+                MotionPattern::Cross => {
+                    let centre = start + line * rng.random_range(0.3..=0.7f32);
+                    let half_travel = 0.5 * rng.random_range(g.travel[0]..=g.travel[1]);
+                    let tilt = rng.random_range(-0.3..=0.3f32);
+                    let dir = (normal + along * tilt).normalize_or_zero();
+                    if !ok(centre) {
+                        continue;
+                    }
+                    extend(centre, dir, [half_travel; 2])
+                }
+                // Along the line, a little off it, over the part of it that is free round a
+                // point between start and goal: from the goal's end or the start's.
+                MotionPattern::HeadOn | MotionPattern::Group | MotionPattern::SameWay => {
+                    let off = normal * rng.random_range(-0.3..=0.3f32);
+                    let t = rng.random_range(0.35..=0.75f32) * length;
+                    let centre = start + along * t + off;
+                    if !ok(centre) {
+                        continue;
+                    }
+                    let (near, far) = extend(centre, along, [t, length - t]);
+                    if pattern == MotionPattern::SameWay { (near, far) } else { (far, near) }
+                }
+            };
+            if (a - b).length() >= 0.5 {
+                return Some((a, b));
+            }
+        }
+        None
     }
 
     fn place<R: rand::Rng>(
@@ -1869,6 +1948,50 @@ mod tests {
         let bad = "name: t\narena: {size: [8, 8]}\nprocedural: {movers: {patterns: []}}\n";
         let err = crate::config::from_yaml_str::<ScenarioSpec>("t.yaml", bad).unwrap_err().to_string();
         assert!(err.contains("t.yaml") && err.contains("procedural.movers.patterns"), "{err}");
+    }
+
+    /// With `free_paths`, generated movers in rooms with partitions and corridors never pass
+    /// through a wall and keep off the start and the goal; without it, some do.
+    #[test]
+    fn free_mover_paths_keep_out_of_walls() {
+        let yaml = |free: bool| {
+            format!(
+                "name: t\narena: {{size: [8, 8]}}\nprocedural:\n  count: [4, 8]\n  \
+                 partitions: {{count: [1, 2], door: [0.7, 1.2], probability: 0.6}}\n  \
+                 corridors: {{probability: 0.3, width: [1.0, 1.6]}}\n  \
+                 movers: {{count: [2, 2], size: [0.2, 0.5], travel: [2, 5], patterns: [cross, head_on, same_way], \
+                 free_paths: {free}}}\nstart_goal_distance: [2, 7]\n"
+            )
+        };
+        let run = |free: bool| {
+            let spec: ScenarioSpec = crate::config::from_yaml_str("t.yaml", &yaml(free)).unwrap();
+            let s = Scenario::new(spec, 0.2, 0.0).unwrap();
+            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(9);
+            let (mut movers, mut in_walls, mut near_ends) = (0, 0, 0);
+            for _ in 0..60 {
+                let e = s.sample(&mut rng).unwrap();
+                for m in &e.movers {
+                    movers += 1;
+                    // The box's centre over a whole back-and-forth cycle.
+                    let centres: Vec<Vec2> =
+                        (0..400).map(|k| m.clone().at_time(k as f32 * 0.1).pose.position()).collect();
+                    let MoverShape::Box { size } = m.shape else { panic!("generated movers are boxes") };
+                    let half = size[0] * std::f32::consts::FRAC_1_SQRT_2;
+                    in_walls += centres.iter().any(|c| !e.world.is_clear(*c, half)) as usize;
+                    near_ends += centres
+                        .iter()
+                        .any(|c| (*c - e.start.position()).length() < half + 0.2 || (*c - e.goal).length() < half + 0.2)
+                        as usize;
+                }
+            }
+            (movers, in_walls, near_ends)
+        };
+        let (n, walls, ends) = run(true);
+        assert!(n >= 60, "only {n} movers in 60 scenes");
+        assert_eq!((walls, ends), (0, 0), "of {n} movers");
+        // The check matters: straight paths through these rooms meet walls.
+        let (n, walls, _) = run(false);
+        assert!(walls >= 10, "{walls} of {n} straight paths meet a wall");
     }
 
     #[test]
