@@ -1140,9 +1140,10 @@ impl Scenario {
         movers
     }
 
-    /// A generated mover's path in free space (`free_paths`): drawn as without it, then cut
-    /// where the largest box would meet a static obstacle or come near the start or the goal;
-    /// a few draws, `None` when none leaves 0.5 m.
+    /// A generated mover's path in free space (`free_paths`): a centre drawn on or across the
+    /// start–goal line (across it tilted by up to about 17°; along it at 35–75% of the way),
+    /// then as far each way as the largest box stays clear of static obstacles, the start and
+    /// the goal; a few draws, `None` when none leaves 0.5 m.
     fn free_mover_path<R: rand::Rng>(
         &self,
         g: &MoverGenSpec,
