@@ -47,6 +47,7 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("heldout-static-legs", include_str!("../../../scenarios/heldout-static-legs.yaml")),
     ("heldout-static-zigzag", include_str!("../../../scenarios/heldout-static-zigzag.yaml")),
     ("heldout-static-narrow", include_str!("../../../scenarios/heldout-static-narrow.yaml")),
+    ("heldout-static-hall", include_str!("../../../scenarios/heldout-static-hall.yaml")),
     ("heldout-dynamic-fast-crossing", include_str!("../../../scenarios/heldout-dynamic-fast-crossing.yaml")),
     ("heldout-dynamic-head-on", include_str!("../../../scenarios/heldout-dynamic-head-on.yaml")),
     ("heldout-dynamic-overtake", include_str!("../../../scenarios/heldout-dynamic-overtake.yaml")),
