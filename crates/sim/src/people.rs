@@ -268,16 +268,24 @@ impl Crowd {
                 time_horizon: TIME_HORIZON,
                 obstacle_time_horizon: OBSTACLE_HORIZON,
             };
-            let v = agents[i].compute_avoiding_velocity(
-                &neighbours[..last],
-                &obstacles,
-                to_orca(preferred),
-                p.speed,
-                dt,
-                &options,
-            );
+            // dodgy_2d 0.5 panics (`f32::clamp` on NaN in its linear program) on some
+            // degenerate configurations; one crashed a training run after 8 M steps and could
+            // not be reproduced in 7 M person-steps of the same rooms. A person whose solve
+            // fails stands still for this step rather than the simulator aborting.
+            let solve = || {
+                agents[i].compute_avoiding_velocity(
+                    &neighbours[..last],
+                    &obstacles,
+                    to_orca(preferred),
+                    p.speed,
+                    dt,
+                    &options,
+                )
+            };
+            let v = std::panic::catch_unwind(std::panic::AssertUnwindSafe(solve))
+                .map_or(Vec2::ZERO, |v| Vec2::new(v.x, v.y));
             neighbours.swap(i, last);
-            velocities.push(Vec2::new(v.x, v.y));
+            velocities.push(v);
         }
         for (p, v) in self.people.iter_mut().zip(velocities) {
             p.velocity = if v.is_finite() { v } else { Vec2::ZERO };

@@ -14,6 +14,27 @@ fn person(goals: Vec<[f32; 2]>, speed: f32) -> PersonSpec {
     PersonSpec { radius: 0.25, goals, speed: [speed, speed], order: Default::default(), random_start: false }
 }
 
+/// dodgy_2d's linear program panics on NaN constraints; a person whose ORCA solve fails
+/// stands still for the step and the others walk on, rather than the simulator aborting.
+#[test]
+fn a_failed_orca_solve_stops_the_person_not_the_simulator() {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(0);
+    let a = person(vec![[-3.0, 0.0], [3.0, 0.0]], 1.0).instantiate(&mut rng);
+    let mut crowd = Crowd::new(vec![a], &World::new(Vec::new()));
+    // The solver itself panics here (a NaN neighbour makes every constraint NaN).
+    let nan = Vec2::new(f32::NAN, f32::NAN);
+    let failed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let mut c = crowd.clone();
+        c.plan(nan, 0.2, 0.1, &mut rand_pcg::Pcg64Mcg::seed_from_u64(1));
+        c.people[0].velocity
+    }));
+    let v = failed.expect("plan does not panic");
+    assert_eq!(v, Vec2::ZERO, "the person stands still");
+    // With a sane robot the same person walks again.
+    crowd.plan(Vec2::new(50.0, 50.0), 0.2, 0.1, &mut rng);
+    assert!(crowd.people[0].velocity.length() > 0.5, "{:?}", crowd.people[0].velocity);
+}
+
 #[test]
 fn two_people_swap_places_without_touching() {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(0);
