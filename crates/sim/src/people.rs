@@ -283,12 +283,15 @@ impl Crowd {
                 )
             };
             let v = std::panic::catch_unwind(std::panic::AssertUnwindSafe(solve))
-                .map_or(Vec2::ZERO, |v| Vec2::new(v.x, v.y));
+                .ok()
+                .map(|v| Vec2::new(v.x, v.y))
+                .filter(|v| v.is_finite())
+                .unwrap_or(Vec2::ZERO);
             neighbours.swap(i, last);
             velocities.push(v);
         }
         for (p, v) in self.people.iter_mut().zip(velocities) {
-            p.velocity = if v.is_finite() { v } else { Vec2::ZERO };
+            p.velocity = v;
         }
     }
 

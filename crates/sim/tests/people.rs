@@ -15,7 +15,7 @@ fn person(goals: Vec<[f32; 2]>, speed: f32) -> PersonSpec {
 }
 
 /// dodgy_2d's linear program panics on NaN constraints; a person whose ORCA solve fails
-/// stands still for the step and the others walk on, rather than the simulator aborting.
+/// stands still for the step rather than the simulator aborting.
 #[test]
 fn a_failed_orca_solve_stops_the_person_not_the_simulator() {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(0);
