@@ -25,6 +25,7 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("dynamic-room", include_str!("../../../scenarios/dynamic-room.yaml")),
     ("random-dynamic", include_str!("../../../scenarios/random-dynamic.yaml")),
     ("random-rooms", include_str!("../../../scenarios/random-rooms.yaml")),
+    ("random-rooms-legs", include_str!("../../../scenarios/random-rooms-legs.yaml")),
     ("random-rooms-dynamic", include_str!("../../../scenarios/random-rooms-dynamic.yaml")),
     ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
     ("warehouse", include_str!("../../../scenarios/warehouse.yaml")),
