@@ -1773,6 +1773,20 @@ mod tests {
         );
     }
 
+    /// `random-rooms-legs` is a copy of `random-rooms` plus leg patches (YAML has no include):
+    /// the two must not drift apart, or the shipped config trains in other rooms than its
+    /// docs say.
+    #[test]
+    fn random_rooms_legs_is_random_rooms_with_leg_patches() {
+        let rooms = ScenarioSpec::load("random-rooms").unwrap();
+        let mut legs = ScenarioSpec::load("random-rooms-legs").unwrap();
+        let generator = legs.procedural.as_mut().unwrap();
+        assert_eq!(generator.forest.take().map(|f| f.probability), Some(0.3));
+        legs.name.clone_from(&rooms.name);
+        legs.description.clone_from(&rooms.description);
+        assert_eq!(legs, rooms);
+    }
+
     #[test]
     fn rooms_generator_builds_doors_dead_ends_and_clutter_around_the_line() {
         let spec = ScenarioSpec::load("random-rooms").unwrap();
