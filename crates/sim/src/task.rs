@@ -63,11 +63,14 @@ impl ActionConfig {
 pub struct RewardConfig {
     /// Weight of the progress term `d_{t-1} - d_t` (default 1).
     pub progress: f32,
-    /// Proximity penalty weight: `-proximity * exp(-r_min)` while `r_min < proximity_range`
-    /// (default 1).
+    /// Proximity penalty weight (default 1): each control step while `r_min < proximity_range`,
+    /// `-proximity` times the [`ProximityShape`]'s value.
     pub proximity: f32,
     /// Lidar distance below which the proximity penalty applies (m, default 0.5).
     pub proximity_range: f32,
+    /// How the proximity penalty grows as the nearest return closes in (default `exp`, the
+    /// reference article's).
+    pub proximity_shape: ProximityShape,
     /// Reward for reaching the goal (default 30).
     pub goal: f32,
     /// Extra goal reward per control step left before the time limit (default 0.01).
@@ -92,12 +95,40 @@ pub struct RewardConfig {
     pub idle_speed: f32,
 }
 
+/// The shape of the proximity penalty inside `proximity_range`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProximityShape {
+    /// `exp(-r_min)`, the reference article's: 0.61-0.78 between 0.5 m and 0.25 m, nearly a
+    /// constant charge for being inside the range, so a pass 0.26 m from a post costs little
+    /// more than one 0.45 m away.
+    #[default]
+    Exp,
+    /// `(proximity_range - r_min) / (proximity_range - collision_range)`: 0 at the edge of the
+    /// range, 1 at the collision range; it pays to keep to the middle of a gap.
+    Linear,
+}
+
+impl ProximityShape {
+    /// The penalty's value (before the weight) at the nearest return `r_min`, for a penalty that
+    /// starts at `range` and a collision at `collision_range`.
+    #[inline]
+    pub fn value(self, r_min: f32, range: f32, collision_range: f32) -> f32 {
+        match self {
+            Self::Exp => (-r_min).exp(),
+            // Validation keeps range > collision_range for this shape.
+            Self::Linear => ((range - r_min) / (range - collision_range)).clamp(0.0, 1.0),
+        }
+    }
+}
+
 impl Default for RewardConfig {
     fn default() -> Self {
         Self {
             progress: 1.0,
             proximity: 1.0,
             proximity_range: 0.5,
+            proximity_shape: ProximityShape::Exp,
             goal: 30.0,
             goal_time_bonus: 0.01,
             collision: -30.0,
@@ -245,6 +276,15 @@ impl Validate for TaskConfig {
             check_range(k, v, -1e4, 1e4)?;
         }
         check_range("reward.proximity_range", r.proximity_range, 0.0, 100.0)?;
+        if r.proximity_shape == ProximityShape::Linear && r.proximity_range <= self.collision_range {
+            return Err(Invalid::new(
+                "reward.proximity_range",
+                format!(
+                    "above collision_range ({}) for proximity_shape linear, got {}",
+                    self.collision_range, r.proximity_range
+                ),
+            ));
+        }
         check_range("reward.social", r.social, 0.0, 1e4)?;
         check_range("reward.social_radius", r.social_radius, 0.01, 100.0)?;
         check_range("reward.idle", r.idle, 0.0, 1e4)?;
@@ -866,7 +906,7 @@ impl NavEnv {
             }
         }
         if r_min < rw.proximity_range {
-            reward -= rw.proximity * (-r_min).exp();
+            reward -= rw.proximity * rw.proximity_shape.value(r_min, rw.proximity_range, task.collision_range);
         }
         if rw.idle > 0.0 && self.drive.velocity.linear.abs() < rw.idle_speed {
             reward -= rw.idle;
@@ -1231,6 +1271,52 @@ mod tests {
             }
         }
         assert!(collisions >= 5, "straight ahead in a 6 m room mostly hits a wall: {collisions}");
+    }
+
+    #[test]
+    fn linear_proximity_penalty_grows_to_the_collision_range() {
+        let spec = ScenarioSpec::load("empty-room").unwrap();
+        let robot = RobotSpec::load("jetbot").unwrap();
+        let task = |proximity_shape| {
+            // Only the proximity term: the reward is minus the shape's value.
+            let reward = RewardConfig { progress: 0.0, proximity_shape, ..Default::default() };
+            TaskConfig { reward, ..Default::default() }
+        };
+        let env = |shape| NavEnv::new(Arc::new(EnvSetup::new(spec.clone(), robot.clone(), task(shape)).unwrap()), 1);
+        let (mut exp, mut lin) = (env(ProximityShape::Exp).unwrap(), env(ProximityShape::Linear).unwrap());
+        // Straight ahead until the first wall: the same seed and actions, the same path.
+        let mut pairs = Vec::new();
+        for _ in 0..200 {
+            let (a, b) = (exp.step([1.0, 0.0]), lin.step([1.0, 0.0]));
+            assert_eq!(a.terminated, b.terminated);
+            if a.terminated || a.truncated {
+                break;
+            }
+            if a.reward != 0.0 {
+                pairs.push((-a.reward, -b.reward));
+            }
+        }
+        assert!(pairs.len() >= 3, "the robot must cross the 0.5 m band before the wall: {pairs:?}");
+        for &(e, l) in &pairs {
+            // exp(-r) gives r back; the linear value at r is (0.5 - r) / (0.5 - 0.25).
+            let r = -e.ln();
+            assert!((0.25..0.5).contains(&r), "{r}");
+            assert!((l - (0.5 - r) / 0.25).abs() < 1e-4, "r {r}: linear {l}");
+        }
+        // The linear charge grows with every step in; the exponential one hardly changes.
+        assert!(pairs.windows(2).all(|w| w[1].1 > w[0].1), "{pairs:?}");
+        let (first, last) = (pairs[0], pairs[pairs.len() - 1]);
+        assert!(last.1 - first.1 > 0.5 && last.0 - first.0 < 0.2, "{pairs:?}");
+        let bad = TaskConfig {
+            reward: RewardConfig { proximity_range: 0.2, ..task(ProximityShape::Linear).reward },
+            ..Default::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().key, "reward.proximity_range");
+        assert!(
+            TaskConfig { reward: RewardConfig { proximity_range: 0.2, ..Default::default() }, ..Default::default() }
+                .validate()
+                .is_ok()
+        );
     }
 
     #[test]
