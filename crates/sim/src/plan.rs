@@ -61,7 +61,10 @@ pub fn follow(path: &[Vec2], suffix: &[f32], progress: &mut usize, p: Vec2, look
     let last = path.len() - 2;
     let start = (*progress).min(last);
     // Nearest segment within reach: up to 2 lookaheads plus the robot's distance from the
-    // current segment along the path.
+    // current segment, along the path from the robot's projection on that segment (as Nav2's
+    // controllers search from the last closest pose). Counted from the segment's start
+    // instead, a segment longer than the reach (any-angle plans cross an open hall in one)
+    // would hide the next one for good, and the target would stay at its end.
     let reach = 2.0 * lookahead + crate::geometry::point_segment_distance(p, path[start], path[start + 1]);
     let (mut best, mut best_d, mut best_t) = (start, f32::INFINITY, 0.0);
     let mut walked = 0.0;
@@ -74,7 +77,7 @@ pub fn follow(path: &[Vec2], suffix: &[f32], progress: &mut usize, p: Vec2, look
         if d < best_d {
             (best, best_d, best_t) = (k, d, t);
         }
-        walked += len2.sqrt();
+        walked += len2.sqrt() * if k == start { 1.0 - t } else { 1.0 };
         if walked > reach {
             break;
         }
@@ -164,6 +167,32 @@ mod tests {
         let p = plan_subgoal(&d, &mut 0, Vec2::new(0.0, 0.0), 1.0);
         assert_eq!(p, Vec2::new(1.0, 0.0));
         assert_eq!(path_length(&d), 2.0);
+    }
+
+    /// The plan that a TurtleBot3 Waffle got in the held-out hall: Theta* crosses the open
+    /// floor in one 7 m segment. A robot driving along it must see the target move on to the
+    /// later segments; the window used to be counted from the long segment's start, so the
+    /// target stayed 0.6 m past its end and the robot circled there until the time-out.
+    #[test]
+    fn the_target_moves_past_a_segment_longer_than_the_search_window() {
+        let plan =
+            [Vec2::new(-5.41, 0.03), Vec2::new(1.525, -1.075), Vec2::new(2.375, -0.575), Vec2::new(5.377, 0.173)];
+        let suffix = suffix_lengths(&plan);
+        let mut k = 0;
+        // Walk the plan in 5 cm steps: the target is always the point 0.6 m further along (the
+        // end in the last 0.6 m), and `rest` counts down.
+        let total = path_length(&plan);
+        let mut last_rest = f32::INFINITY;
+        for i in 0..=(total / 0.05) as usize {
+            let along = (i as f32 * 0.05).min(total);
+            let robot = follow(&plan, &[], &mut 0, plan[0], along).point;
+            let s = follow(&plan, &suffix, &mut k, robot, 0.6);
+            let want = follow(&plan, &[], &mut 0, plan[0], (along + 0.6).min(total)).point;
+            assert!((s.point - want).length() < 1e-3, "at {along:.2} m: target {:?}, want {want:?}", s.point);
+            assert!(s.rest <= last_rest + 1e-4, "at {along:.2} m: rest {} after {last_rest}", s.rest);
+            last_rest = s.rest;
+        }
+        assert_eq!(k, plan.len() - 2);
     }
 
     #[test]
