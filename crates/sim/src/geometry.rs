@@ -325,6 +325,18 @@ impl Primitive {
     }
 }
 
+/// The time in `[0, horizon]` at which two points moving at constant velocities come nearest:
+/// `offset` is the other's position minus this one's, `relative_velocity` the other's velocity
+/// minus this one's. 0 when they do not close in (or `horizon` is 0).
+#[inline]
+pub fn closest_approach_time(offset: Vec2, relative_velocity: Vec2, horizon: f32) -> f32 {
+    let vv = relative_velocity.length_squared();
+    if vv < 1e-12 || horizon <= 0.0 {
+        return 0.0;
+    }
+    (-offset.dot(relative_velocity) / vv).clamp(0.0, horizon)
+}
+
 /// Distance from `p` to segment `[a, b]`.
 #[inline]
 pub fn point_segment_distance(p: Vec2, a: Vec2, b: Vec2) -> f32 {
@@ -364,6 +376,17 @@ impl Rect {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn closest_approach_is_when_the_gap_stops_closing() {
+        // 4 m apart closing at 2 m/s with a 1 m offset: nearest at 2 s.
+        let (p, v) = (Vec2::new(4.0, 1.0), Vec2::new(-2.0, 0.0));
+        assert!((closest_approach_time(p, v, 5.0) - 2.0).abs() < 1e-6);
+        assert_eq!(closest_approach_time(p, v, 1.5), 1.5, "no further than the horizon");
+        assert_eq!(closest_approach_time(p, -v, 5.0), 0.0, "moving apart: now");
+        assert_eq!(closest_approach_time(p, Vec2::ZERO, 5.0), 0.0);
+        assert_eq!(closest_approach_time(p, v, 0.0), 0.0);
+    }
 
     #[test]
     fn wrap_angle_range() {

@@ -3,8 +3,9 @@
 //! 0.1–0.3 m/s). The lidar sees them and touching one is a collision.
 
 use crate::config::{Invalid, check_interval, check_positive};
-use crate::geometry::{Pose2, Vec2, point_segment_distance};
+use crate::geometry::{Pose2, Vec2, closest_approach_time, point_segment_distance};
 use crate::lidar::RayGeometry;
+use crate::people::social_charge;
 use crate::robot::Footprint;
 use parry2d::query::intersection_test;
 use parry2d::shape::{Ball, Cuboid, SharedShape};
@@ -115,8 +116,17 @@ impl MoverSpec {
             PathMode::Once => 0.5 * length,
         };
         let phase = if self.random_phase { rng.random_range(0.0..cycle.max(1e-6)) } else { 0.0 };
-        Mover { shape: self.shape.clone(), points, length, mode: self.mode, speed, phase, pose: Pose2::default() }
-            .at_time(0.0)
+        Mover {
+            shape: self.shape.clone(),
+            points,
+            length,
+            mode: self.mode,
+            speed,
+            phase,
+            pose: Pose2::default(),
+            velocity: Vec2::ZERO,
+        }
+        .at_time(0.0)
     }
 }
 
@@ -133,6 +143,8 @@ pub struct Mover {
     phase: f32,
     /// Current pose (yaw along the direction of travel).
     pub pose: Pose2,
+    /// Current velocity (m/s; zero where a `once` path has ended).
+    pub velocity: Vec2,
 }
 
 impl Mover {
@@ -146,11 +158,14 @@ impl Mover {
     pub fn set_time(&mut self, t: f32) {
         let mut s = self.phase + self.speed * t;
         let mut backwards = false;
+        let mut moving = true;
         if self.length <= 0.0 {
             s = 0.0;
+            moving = false;
         } else if matches!(self.mode, PathMode::Loop | PathMode::Repeat) {
             s = s.rem_euclid(self.length);
         } else if self.mode == PathMode::Once {
+            moving = s < self.length;
             s = s.clamp(0.0, self.length);
         } else {
             s = s.rem_euclid(2.0 * self.length);
@@ -167,6 +182,7 @@ impl Mover {
                 let p = w[0] + seg * (s / l.max(1e-9)).min(1.0);
                 let dir = if backwards { -seg } else { seg };
                 self.pose = Pose2::new(p.x, p.y, dir.y.atan2(dir.x));
+                self.velocity = if moving { dir * (self.speed / l.max(1e-9)) } else { Vec2::ZERO };
                 return;
             }
             s -= l;
@@ -204,6 +220,15 @@ impl Mover {
             }
             _ => f32::INFINITY,
         }
+    }
+
+    /// The mover's share of the social penalty ([`crate::people::social_charge`]) for a robot at
+    /// `robot` moving at `robot_velocity`: the gap at the nearest approach of the two centres
+    /// within `horizon` seconds if both keep their velocities (0: the gap now).
+    pub fn intrusion(&self, robot: Vec2, robot_velocity: Vec2, robot_radius: f32, radius: f32, horizon: f32) -> f32 {
+        let t = closest_approach_time(self.pose.position() - robot, self.velocity - robot_velocity, horizon);
+        let gap = self.signed_distance(robot + (robot_velocity - self.velocity) * t) - robot_radius;
+        social_charge(gap, radius)
     }
 
     /// Whether the robot's footprint at `pose` touches the mover.
@@ -247,6 +272,7 @@ mod tests {
         assert!((m.pose.x - 1.0).abs() < 1e-6 && m.pose.yaw == 0.0);
         m.set_time(6.0); // 3 m travelled: 1 m back from the far end, heading -x
         assert!((m.pose.x - 1.0).abs() < 1e-5 && (m.pose.yaw.abs() - std::f32::consts::PI).abs() < 1e-5);
+        assert!((m.velocity - Vec2::new(-0.5, 0.0)).length() < 1e-5, "{:?}", m.velocity);
         m.set_time(8.0);
         assert!(m.pose.x.abs() < 1e-5);
         // The box is seen and touched where it is.
@@ -273,6 +299,9 @@ mod tests {
             assert!((once.pose.x - x_once).abs() < 1e-4, "once at {t}: {}", once.pose.x);
             assert!((repeat.pose.x - x_repeat).abs() < 1e-4, "repeat at {t}: {}", repeat.pose.x);
             assert_eq!((once.pose.y, once.pose.yaw, repeat.pose.yaw), (1.0, 0.0, 0.0), "always heading +x");
+            // A crossing that has ended stands still.
+            let v_once = if t < 20.0 { 0.5 } else { 0.0 };
+            assert_eq!((once.velocity, repeat.velocity), (Vec2::new(v_once, 0.0), Vec2::new(0.5, 0.0)), "at {t}");
         }
         // A random phase puts a crossing somewhere in its first half.
         let mut r = MoverSpec { random_phase: true, ..spec(PathMode::Once) };

@@ -7,7 +7,7 @@
 //! still meets one who steps aside too late, as people do.
 
 use crate::config::{Invalid, check_interval, check_range};
-use crate::geometry::{Primitive, Vec2};
+use crate::geometry::{Primitive, Vec2, closest_approach_time};
 use crate::lidar::RayGeometry;
 use crate::robot::Footprint;
 use crate::world::World;
@@ -308,18 +308,25 @@ impl Crowd {
         self.people.iter().map(|p| p.signed_distance(robot) - robot_radius).fold(f32::INFINITY, f32::min)
     }
 
-    /// The social penalty's sum: for every person closer than `radius` (gap from the robot's
-    /// circumscribed circle), `(radius - gap) / radius`, which grows from 0 at the edge to 1 at
-    /// contact.
-    pub fn intrusion(&self, robot: Vec2, robot_radius: f32, radius: f32) -> f32 {
+    /// The social penalty's sum over the people (see [`social_charge`]): `robot` and
+    /// `robot_velocity` are the robot's position and velocity, and each gap is the one at the
+    /// nearest approach within `horizon` seconds if both keep their velocities (0: the gap now).
+    pub fn intrusion(&self, robot: Vec2, robot_velocity: Vec2, robot_radius: f32, radius: f32, horizon: f32) -> f32 {
         self.people
             .iter()
             .map(|p| {
-                let gap = (p.signed_distance(robot) - robot_radius).max(0.0);
-                ((radius - gap) / radius).max(0.0)
+                let t = closest_approach_time(p.position - robot, p.velocity - robot_velocity, horizon);
+                social_charge(p.signed_distance(robot + (robot_velocity - p.velocity) * t) - robot_radius, radius)
             })
             .sum()
     }
+}
+
+/// One body's share of the social penalty: for a gap (from the robot's circumscribed circle)
+/// below `radius`, `(radius - gap) / radius`, growing from 0 at the edge to 1 at contact.
+#[inline]
+pub fn social_charge(gap: f32, radius: f32) -> f32 {
+    ((radius - gap.max(0.0)) / radius).max(0.0)
 }
 
 /// A primitive's outline as a counter-clockwise polygon for ORCA.

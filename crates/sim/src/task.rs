@@ -85,6 +85,15 @@ pub struct RewardConfig {
     pub social: f32,
     /// Radius of a person's personal space for the social penalty (m, default 1.0).
     pub social_radius: f32,
+    /// Whether the social penalty also counts the moving obstacles (carts, boxes), with the
+    /// same radius, not only people (default false). A policy that passes a cart as closely
+    /// as a wall's corner meets it 0.2-0.4 m off its line when it comes head-on.
+    pub social_movers: bool,
+    /// Look-ahead of the social penalty (s, default 0: the gap now): each gap is measured at
+    /// the nearest approach within this many seconds if the robot and the body keep their
+    /// velocities, so that a course that will cross a mover's costs before it is close, and
+    /// one that has passed it costs nothing. Ground-truth velocities: a training signal only.
+    pub social_horizon: f32,
     /// Penalty per control step while the robot's measured forward speed is below
     /// `idle_speed` (default 0: off). For action ranges that let the robot stop: without it,
     /// standing until the time limit costs next to nothing once discounted (γ = 0.99 puts a
@@ -135,6 +144,8 @@ impl Default for RewardConfig {
             timeout: -30.0,
             social: 0.0,
             social_radius: 1.0,
+            social_movers: false,
+            social_horizon: 0.0,
             idle: 0.0,
             idle_speed: 0.05,
         }
@@ -287,6 +298,7 @@ impl Validate for TaskConfig {
         }
         check_range("reward.social", r.social, 0.0, 1e4)?;
         check_range("reward.social_radius", r.social_radius, 0.01, 100.0)?;
+        check_range("reward.social_horizon", r.social_horizon, 0.0, 60.0)?;
         check_range("reward.idle", r.idle, 0.0, 1e4)?;
         check_range("reward.idle_speed", r.idle_speed, 0.0, 100.0)?;
         self.randomization.validate()?;
@@ -898,12 +910,20 @@ impl NavEnv {
         let remaining = self.update_target();
         let rw = &task.reward;
         let mut reward = rw.progress * (self.distance - remaining);
+        let here = self.drive.pose.position();
         if !self.crowd.is_empty() {
-            let here = self.drive.pose.position();
             self.min_person_gap = self.min_person_gap.min(self.crowd.min_gap(here, robot_radius));
-            if rw.social > 0.0 {
-                reward -= rw.social * self.crowd.intrusion(here, robot_radius, rw.social_radius);
+        }
+        if rw.social > 0.0 {
+            let pose = &self.drive.pose;
+            let velocity = Vec2::new(pose.yaw.cos(), pose.yaw.sin()) * self.drive.velocity.linear;
+            let (radius, horizon) = (rw.social_radius, rw.social_horizon);
+            let mut intrusion = self.crowd.intrusion(here, velocity, robot_radius, radius, horizon);
+            if rw.social_movers {
+                intrusion +=
+                    self.movers.iter().map(|m| m.intrusion(here, velocity, robot_radius, radius, horizon)).sum::<f32>();
             }
+            reward -= rw.social * intrusion;
         }
         if r_min < rw.proximity_range {
             reward -= rw.proximity * rw.proximity_shape.value(r_min, rw.proximity_range, task.collision_range);

@@ -170,3 +170,49 @@ fn people_room_is_deterministic_and_bad_people_are_named() {
     .to_string();
     assert!(e.contains("p.yaml") && e.contains("people[0].goals") && e.contains("at least two"), "{e}");
 }
+
+/// A cart coming head-on 0.6 m beside the robot's line, which it passes without touching.
+const CART: &str = "name: cart\narena: {size: [8.0, 3.0]}\n\
+    start: {poses: [[-3.0, 0.0, 0.0]]}\ngoal: {points: [[3.5, 0.0]]}\nstart_goal_distance: [5, 7]\nmargin: 0\n\
+    movers:\n  - {shape: {box: {size: [0.4, 0.4]}}, waypoints: [[3.0, 0.6], [-3.5, 0.6]], speed: [0.3, 0.3], random_phase: false}\n";
+
+#[test]
+fn social_penalty_counts_movers_on_request_and_looks_ahead() {
+    let task = |movers: bool, horizon: f32| {
+        let mut t = TaskConfig::default();
+        t.reward.social = 1.0;
+        t.reward.social_radius = 1.0;
+        t.reward.social_movers = movers;
+        t.reward.social_horizon = horizon;
+        people_env(CART, t, 0)
+    };
+    let mut envs = [people_env(CART, TaskConfig::default(), 0), task(false, 0.0), task(true, 0.0), task(true, 3.0)];
+    let (mut now, mut ahead, mut behind) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..150 {
+        let r: Vec<f32> = envs.iter_mut().map(|e| e.step_twist(Twist::new(0.3, 0.0)).reward).collect();
+        assert!(envs.iter().all(|e| e.pose() == envs[0].pose()), "same motion");
+        let env = &envs[2];
+        let cart = &env.movers()[0];
+        assert!((cart.velocity - Vec2::new(-0.3, 0.0)).length() < 1e-4, "{:?}", cart.velocity);
+        // Without `social_movers` a cart costs nothing; with it, the gap now.
+        assert_eq!(r[0], r[1]);
+        let gap = cart.signed_distance(env.pose().position()) - env.setup().footprint.radius();
+        let expected = ((1.0 - gap.max(0.0)) / 1.0).max(0.0);
+        assert!((r[0] - r[2] - expected).abs() < 1e-4, "gap {gap}: {} vs {}", r[0], r[2]);
+        now.push(r[0] - r[2]);
+        ahead.push(r[0] - r[3]);
+        behind.push(cart.pose.x < env.pose().x - 0.3);
+        if cart.pose.x < env.pose().x - 1.5 {
+            break;
+        }
+    }
+    let onset = |p: &[f32]| p.iter().position(|&v| v > 0.0).expect("charged at some point");
+    // Closing at 0.6 m/s, the look-ahead charges the crossing about 3 s (30 steps) before the
+    // gap itself falls under the radius, and charges at least as much while they close in.
+    assert!(onset(&ahead) + 20 < onset(&now), "onset {} vs {}", onset(&ahead), onset(&now));
+    assert!(now.iter().zip(&ahead).all(|(n, a)| a >= &(n - 1e-5)), "{now:?}\n{ahead:?}");
+    // Once the cart is past, the nearest approach is now: the same charge.
+    let passed = behind.iter().position(|&b| b).expect("the cart passes");
+    assert!((now[passed] - ahead[passed]).abs() < 1e-5 && now[passed] > 0.0, "{} vs {}", now[passed], ahead[passed]);
+    assert!(*now.iter().max_by(|a, b| a.total_cmp(b)).unwrap() > 0.5, "{now:?}");
+}
