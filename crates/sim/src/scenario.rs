@@ -27,6 +27,8 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("random-rooms", include_str!("../../../scenarios/random-rooms.yaml")),
     ("random-rooms-legs", include_str!("../../../scenarios/random-rooms-legs.yaml")),
     ("random-rooms-dynamic", include_str!("../../../scenarios/random-rooms-dynamic.yaml")),
+    ("random-rooms-traffic", include_str!("../../../scenarios/random-rooms-traffic.yaml")),
+    ("hall-traffic", include_str!("../../../scenarios/hall-traffic.yaml")),
     ("moving-goal", include_str!("../../../scenarios/moving-goal.yaml")),
     ("warehouse", include_str!("../../../scenarios/warehouse.yaml")),
     ("barn-generated", include_str!("../../../scenarios/barn-generated.yaml")),
@@ -1785,6 +1787,20 @@ mod tests {
         legs.name.clone_from(&rooms.name);
         legs.description.clone_from(&rooms.description);
         assert_eq!(legs, rooms);
+    }
+
+    /// `random-rooms-traffic` is `random-rooms-legs` with more leg patches and traffic.
+    #[test]
+    fn random_rooms_traffic_is_random_rooms_legs_with_traffic() {
+        let legs = ScenarioSpec::load("random-rooms-legs").unwrap();
+        let mut traffic = ScenarioSpec::load("random-rooms-traffic").unwrap();
+        let generator = traffic.procedural.as_mut().unwrap();
+        let (movers, people) = (generator.movers.take().unwrap(), generator.people.take().unwrap());
+        assert!(movers.free_paths && movers.count == [0, 2] && people.count == [0, 1]);
+        generator.forest.as_mut().unwrap().probability = 0.3;
+        traffic.name.clone_from(&legs.name);
+        traffic.description.clone_from(&legs.description);
+        assert_eq!(traffic, legs);
     }
 
     #[test]
