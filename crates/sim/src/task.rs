@@ -92,7 +92,8 @@ pub struct RewardConfig {
     /// Look-ahead of the social penalty (s, default 0: the gap now): each gap is measured at
     /// the nearest approach within this many seconds if the robot and the body keep their
     /// velocities, so that a course that will cross a mover's costs before it is close, and
-    /// one that has passed it costs nothing. Ground-truth velocities: a training signal only.
+    /// one that has passed it costs only the gap now. Ground-truth velocities: a training
+    /// signal only.
     pub social_horizon: f32,
     /// Penalty per control step while the robot's measured forward speed is below
     /// `idle_speed` (default 0: off). For action ranges that let the robot stop: without it,
