@@ -71,6 +71,12 @@ pub struct RewardConfig {
     /// How the proximity penalty grows as the nearest return closes in (default `exp`, the
     /// reference article's).
     pub proximity_shape: ProximityShape,
+    /// Look-ahead of the proximity penalty (s, default 0: the nearest return now): the
+    /// penalty is charged on the nearest any return comes if the robot drove straight on at
+    /// its measured speed for this long, the returns held still. A robot running at a post
+    /// pays before the post is close, and pays less for slowing down or turning away; one
+    /// driving along a wall pays what it pays now.
+    pub proximity_horizon: f32,
     /// Reward for reaching the goal (default 30).
     pub goal: f32,
     /// Extra goal reward per control step left before the time limit (default 0.01).
@@ -147,6 +153,7 @@ impl Default for RewardConfig {
             social_radius: 1.0,
             social_movers: false,
             social_horizon: 0.0,
+            proximity_horizon: 0.0,
             idle: 0.0,
             idle_speed: 0.05,
         }
@@ -300,6 +307,7 @@ impl Validate for TaskConfig {
         check_range("reward.social", r.social, 0.0, 1e4)?;
         check_range("reward.social_radius", r.social_radius, 0.01, 100.0)?;
         check_range("reward.social_horizon", r.social_horizon, 0.0, 60.0)?;
+        check_range("reward.proximity_horizon", r.proximity_horizon, 0.0, 60.0)?;
         check_range("reward.idle", r.idle, 0.0, 1e4)?;
         check_range("reward.idle_speed", r.idle_speed, 0.0, 100.0)?;
         self.randomization.validate()?;
@@ -836,6 +844,26 @@ impl NavEnv {
         self.ranges.iter().copied().fold(f32::INFINITY, f32::min)
     }
 
+    /// The nearest the scan's returns come to the sensor if the robot drove straight on at its
+    /// measured speed for `horizon` seconds, the returns held still (never more than the
+    /// nearest return now).
+    fn min_range_ahead(&self, horizon: f32) -> f32 {
+        let yaw = self.drive.pose.yaw;
+        let travel = Vec2::new(yaw.cos(), yaw.sin()) * (self.drive.velocity.linear * horizon);
+        let length2 = travel.length_squared();
+        self.ranges
+            .iter()
+            .zip(&self.dirs)
+            .filter(|(r, _)| r.is_finite())
+            .map(|(&r, &dir)| {
+                let hit = dir * r;
+                // The closest point of the segment the sensor sweeps to this return.
+                let t = if length2 > 0.0 { (hit.dot(travel) / length2).clamp(0.0, 1.0) } else { 0.0 };
+                (hit - travel * t).length()
+            })
+            .fold(f32::INFINITY, f32::min)
+    }
+
     /// Applies a normalised action in `[-1, 1]²` for one control period.
     pub fn step(&mut self, action: [f32; 2]) -> StepOutcome {
         let std = self.setup.task.randomization.action_std;
@@ -926,8 +954,9 @@ impl NavEnv {
             }
             reward -= rw.social * intrusion;
         }
-        if r_min < rw.proximity_range {
-            reward -= rw.proximity * rw.proximity_shape.value(r_min, rw.proximity_range, task.collision_range);
+        let r_charged = if rw.proximity_horizon > 0.0 { self.min_range_ahead(rw.proximity_horizon) } else { r_min };
+        if r_charged < rw.proximity_range {
+            reward -= rw.proximity * rw.proximity_shape.value(r_charged, rw.proximity_range, task.collision_range);
         }
         if rw.idle > 0.0 && self.drive.velocity.linear.abs() < rw.idle_speed {
             reward -= rw.idle;
@@ -1292,6 +1321,72 @@ mod tests {
             }
         }
         assert!(collisions >= 5, "straight ahead in a 6 m room mostly hits a wall: {collisions}");
+    }
+
+    /// With a look-ahead the proximity penalty charges a wall the robot drives at before the
+    /// wall is inside the range, never less than the plain penalty, and the same once the
+    /// returns are close.
+    #[test]
+    fn proximity_horizon_charges_a_wall_ahead_early() {
+        let spec = ScenarioSpec::load("empty-room").unwrap();
+        let robot = RobotSpec::load("jetbot").unwrap();
+        let env = |proximity_horizon| {
+            let reward = RewardConfig {
+                progress: 0.0,
+                proximity_shape: ProximityShape::Linear,
+                proximity_horizon,
+                ..Default::default()
+            };
+            let task = TaskConfig { reward, ..Default::default() };
+            NavEnv::new(Arc::new(EnvSetup::new(spec.clone(), robot.clone(), task).unwrap()), 1).unwrap()
+        };
+        let (mut now, mut ahead) = (env(0.0), env(1.0));
+        // Straight on at full speed until the first wall: the same seed and actions, the same path.
+        let mut charges = Vec::new();
+        for _ in 0..200 {
+            let (a, b) = (now.step([1.0, 0.0]), ahead.step([1.0, 0.0]));
+            assert_eq!(a.terminated, b.terminated);
+            if a.terminated || a.truncated {
+                break;
+            }
+            charges.push((-a.reward, -b.reward));
+        }
+        let first = |pick: fn(&(f32, f32)) -> f32| charges.iter().position(|c| pick(c) > 0.0).unwrap();
+        let (plain, early) = (first(|c| c.0), first(|c| c.1));
+        assert!(plain >= early + 3, "charged from step {early} with the look-ahead, {plain} without: {charges:?}");
+        assert!(charges.iter().all(|&(n, a)| a >= n - 1e-6), "{charges:?}");
+        // Within the last steps the wall is close whatever the look-ahead: 1 is the shape's top.
+        let (n, a) = charges[charges.len() - 1];
+        assert!(a <= 1.0 + 1e-6 && a >= n, "{charges:?}");
+        let bad =
+            TaskConfig { reward: RewardConfig { proximity_horizon: -1.0, ..Default::default() }, ..Default::default() };
+        assert_eq!(bad.validate().unwrap_err().key, "reward.proximity_horizon");
+    }
+
+    /// The look-ahead range: a return ahead comes as close as the robot will drive to it, a
+    /// slower robot keeps it further, a return abeam stays where it is.
+    #[test]
+    fn range_ahead_is_the_closest_approach_of_a_straight_drive() {
+        let spec = ScenarioSpec::load("empty-room").unwrap();
+        let robot = RobotSpec::load("jetbot").unwrap();
+        let setup = EnvSetup::new(spec, robot, TaskConfig::default()).unwrap();
+        let mut env = NavEnv::new(Arc::new(setup), 1).unwrap();
+        env.drive.pose.yaw = 0.0;
+        env.ranges = vec![1.0, 0.6, f32::INFINITY];
+        env.dirs = vec![Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0), Vec2::new(-1.0, 0.0)];
+        let at = |env: &mut NavEnv, speed: f32, horizon: f32| {
+            env.drive.velocity.linear = speed;
+            env.min_range_ahead(horizon)
+        };
+        assert!((at(&mut env, 0.5, 1.0) - 0.5).abs() < 1e-6, "1 m ahead after 0.5 m");
+        assert!(at(&mut env, 0.5, 3.0).abs() < 1e-6, "driving through the return ahead");
+        assert!((at(&mut env, 0.25, 1.0) - 0.6).abs() < 1e-6, "slower: the one abeam is nearer");
+        env.ranges[1] = 2.0;
+        assert!((at(&mut env, 0.25, 1.0) - 0.75).abs() < 1e-6, "slower");
+        assert!((at(&mut env, 0.0, 1.0) - 1.0).abs() < 1e-6, "standing: the range now");
+        assert!((at(&mut env, -0.5, 1.0) - 1.0).abs() < 1e-6, "reversing away from it");
+        env.ranges[0] = f32::INFINITY;
+        assert!((at(&mut env, 0.5, 3.0) - 2.0).abs() < 1e-6, "a return abeam stays where it is");
     }
 
     #[test]
