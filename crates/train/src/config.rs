@@ -16,6 +16,7 @@ pub const TRAIN_PRESETS: &[(&str, &str)] = &[
     ("smoke", include_str!("../../../configs/smoke.yaml")),
     ("barn-jackal", include_str!("../../../configs/barn-jackal.yaml")),
     ("allrobots-plan-mlp", include_str!("../../../configs/allrobots-plan-mlp.yaml")),
+    ("allrobots-hall-traffic-mlp", include_str!("../../../configs/allrobots-hall-traffic-mlp.yaml")),
 ];
 
 /// The built-in default run (`rlnav train` with no `--config`).
