@@ -1324,8 +1324,8 @@ mod tests {
     }
 
     /// With a look-ahead the proximity penalty charges a wall the robot drives at before the
-    /// wall is inside the range, never less than the plain penalty, and the same once the
-    /// returns are close.
+    /// wall is inside the range, never less than the plain penalty and never more than the
+    /// shape's top.
     #[test]
     fn proximity_horizon_charges_a_wall_ahead_early() {
         let spec = ScenarioSpec::load("empty-room").unwrap();
