@@ -3,7 +3,7 @@
 
 use crate::config::{ConfigError, Invalid, Validate, check_interval, check_positive, check_range, from_yaml_file};
 use crate::controller::{Controller, LaserScan, RobotObservation, Twist};
-use crate::geometry::{Pose2, Vec2, wrap_angle};
+use crate::geometry::{Pose2, Vec2, point_segment_distance_squared, wrap_angle};
 use crate::lidar::{Lidar, RayGeometry};
 use crate::movers::Mover;
 pub use crate::observation::{HistoryFill, HistoryOrder, ObsTerm, ObservationLayout};
@@ -850,18 +850,14 @@ impl NavEnv {
     fn min_range_ahead(&self, horizon: f32) -> f32 {
         let yaw = self.drive.pose.yaw;
         let travel = Vec2::new(yaw.cos(), yaw.sin()) * (self.drive.velocity.linear * horizon);
-        let length2 = travel.length_squared();
+        // Each return's distance to the segment the sensor sweeps.
         self.ranges
             .iter()
             .zip(&self.dirs)
             .filter(|(r, _)| r.is_finite())
-            .map(|(&r, &dir)| {
-                let hit = dir * r;
-                // The closest point of the segment the sensor sweeps to this return.
-                let t = if length2 > 0.0 { (hit.dot(travel) / length2).clamp(0.0, 1.0) } else { 0.0 };
-                (hit - travel * t).length()
-            })
+            .map(|(&r, &dir)| point_segment_distance_squared(dir * r, Vec2::ZERO, travel))
             .fold(f32::INFINITY, f32::min)
+            .sqrt()
     }
 
     /// Applies a normalised action in `[-1, 1]²` for one control period.
@@ -1323,6 +1319,22 @@ mod tests {
         assert!(collisions >= 5, "straight ahead in a 6 m room mostly hits a wall: {collisions}");
     }
 
+    /// Drives two environments of the same scene and seed straight on at full speed until the
+    /// first ends (the same actions, so the same path) and returns each step's charges, minus
+    /// the rewards: `(first, second)`.
+    fn charges_straight_to_a_wall(first: &mut NavEnv, second: &mut NavEnv) -> Vec<(f32, f32)> {
+        let mut charges = Vec::new();
+        for _ in 0..200 {
+            let (a, b) = (first.step([1.0, 0.0]), second.step([1.0, 0.0]));
+            assert_eq!(a.terminated, b.terminated);
+            if a.terminated || a.truncated {
+                break;
+            }
+            charges.push((-a.reward, -b.reward));
+        }
+        charges
+    }
+
     /// With a look-ahead the proximity penalty charges a wall the robot drives at before the
     /// wall is inside the range, never less than the plain penalty and never more than the
     /// shape's top.
@@ -1340,17 +1352,7 @@ mod tests {
             let task = TaskConfig { reward, ..Default::default() };
             NavEnv::new(Arc::new(EnvSetup::new(spec.clone(), robot.clone(), task).unwrap()), 1).unwrap()
         };
-        let (mut now, mut ahead) = (env(0.0), env(1.0));
-        // Straight on at full speed until the first wall: the same seed and actions, the same path.
-        let mut charges = Vec::new();
-        for _ in 0..200 {
-            let (a, b) = (now.step([1.0, 0.0]), ahead.step([1.0, 0.0]));
-            assert_eq!(a.terminated, b.terminated);
-            if a.terminated || a.truncated {
-                break;
-            }
-            charges.push((-a.reward, -b.reward));
-        }
+        let charges = charges_straight_to_a_wall(&mut env(0.0), &mut env(1.0));
         let first = |pick: fn(&(f32, f32)) -> f32| charges.iter().position(|c| pick(c) > 0.0).unwrap();
         let (plain, early) = (first(|c| c.0), first(|c| c.1));
         assert!(plain >= early + 3, "charged from step {early} with the look-ahead, {plain} without: {charges:?}");
@@ -1400,18 +1402,8 @@ mod tests {
         };
         let env = |shape| NavEnv::new(Arc::new(EnvSetup::new(spec.clone(), robot.clone(), task(shape)).unwrap()), 1);
         let (mut exp, mut lin) = (env(ProximityShape::Exp).unwrap(), env(ProximityShape::Linear).unwrap());
-        // Straight ahead until the first wall: the same seed and actions, the same path.
-        let mut pairs = Vec::new();
-        for _ in 0..200 {
-            let (a, b) = (exp.step([1.0, 0.0]), lin.step([1.0, 0.0]));
-            assert_eq!(a.terminated, b.terminated);
-            if a.terminated || a.truncated {
-                break;
-            }
-            if a.reward != 0.0 {
-                pairs.push((-a.reward, -b.reward));
-            }
-        }
+        let mut pairs = charges_straight_to_a_wall(&mut exp, &mut lin);
+        pairs.retain(|&(e, _)| e != 0.0);
         assert!(pairs.len() >= 3, "the robot must cross the 0.5 m band before the wall: {pairs:?}");
         for &(e, l) in &pairs {
             // exp(-r) gives r back; the linear value at r is (0.5 - r) / (0.5 - 0.25).
