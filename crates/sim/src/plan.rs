@@ -50,13 +50,16 @@ pub struct Subgoal {
     pub point: Vec2,
     /// Path length from `point` to the path's end (m).
     pub rest: f32,
+    /// Distance from the robot to the path (m): to the nearest segment within reach, the one
+    /// the robot is projected on (the cross-track error).
+    pub offset: f32,
 }
 
 /// As [`plan_subgoal`], with the path length left after the point; `suffix[k]` is the path
 /// length from point `k` to the end (see [`suffix_lengths`]).
 pub fn follow(path: &[Vec2], suffix: &[f32], progress: &mut usize, p: Vec2, lookahead: f32) -> Subgoal {
     if path.len() < 2 {
-        return Subgoal { point: path[0], rest: 0.0 };
+        return Subgoal { point: path[0], rest: 0.0, offset: (p - path[0]).length() };
     }
     let last = path.len() - 2;
     let start = (*progress).min(last);
@@ -93,12 +96,12 @@ pub fn follow(path: &[Vec2], suffix: &[f32], progress: &mut usize, p: Vec2, look
         if step >= left && step > 0.0 {
             let point = from + (to - from) * (left / step);
             let rest = suffix.get(k + 1).map_or(0.0, |r| r + (to - point).length());
-            return Subgoal { point, rest };
+            return Subgoal { point, rest, offset: best_d };
         }
         left -= step;
         from = to;
     }
-    Subgoal { point: path[last + 1], rest: 0.0 }
+    Subgoal { point: path[last + 1], rest: 0.0, offset: best_d }
 }
 
 /// The point `lookahead` ahead along `path` (path length) of the robot at `p`: the robot is
@@ -158,10 +161,15 @@ mod tests {
         let mut k = 0;
         let s = follow(&l, &suffix, &mut k, Vec2::new(0.5, 0.1), 1.0);
         assert!((s.point - Vec2::new(1.5, 0.0)).length() < 1e-5 && (s.rest - 2.5).abs() < 1e-5, "{s:?}");
+        // The robot is 0.1 m beside the first segment.
+        assert!((s.offset - 0.1).abs() < 1e-5, "{s:?}");
         let s = follow(&l, &suffix, &mut k, Vec2::new(1.8, 0.0), 1.0);
         assert!((s.point - Vec2::new(2.0, 0.8)).length() < 1e-5 && (s.rest - 1.2).abs() < 1e-5, "{s:?}");
         let s = follow(&l, &suffix, &mut k, Vec2::new(2.0, 1.5), 1.0);
-        assert_eq!(s, Subgoal { point: Vec2::new(2.0, 2.0), rest: 0.0 });
+        assert_eq!(s, Subgoal { point: Vec2::new(2.0, 2.0), rest: 0.0, offset: 0.0 });
+        // Off the corner's outside: the distance to the corner, not to either line.
+        let s = follow(&l, &suffix, &mut 0, Vec2::new(2.3, -0.4), 1.0);
+        assert!((s.offset - 0.5).abs() < 1e-5, "{s:?}");
         // Repeated points (Nav2 plans have them) and a lookahead ending on one: no NaN.
         let d = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(2.0, 0.0)];
         let p = plan_subgoal(&d, &mut 0, Vec2::new(0.0, 0.0), 1.0);
