@@ -21,6 +21,7 @@ pub const SUITE_PRESETS: &[(&str, &str)] = &[
     ("barn", include_str!("../../../suites/barn.yaml")),
     ("heldout-static", include_str!("../../../suites/heldout-static.yaml")),
     ("heldout-dynamic", include_str!("../../../suites/heldout-dynamic.yaml")),
+    ("probe-corridor", include_str!("../../../suites/probe-corridor.yaml")),
 ];
 
 /// A suite file.

@@ -57,6 +57,10 @@ pub const SCENARIO_PRESETS: &[(&str, &str)] = &[
     ("heldout-dynamic-group", include_str!("../../../scenarios/heldout-dynamic-group.yaml")),
     ("heldout-dynamic-doorway", include_str!("../../../scenarios/heldout-dynamic-doorway.yaml")),
     ("heldout-dynamic-office", include_str!("../../../scenarios/heldout-dynamic-office.yaml")),
+    ("probe-corridor-wall-wall", include_str!("../../../scenarios/probe-corridor-wall-wall.yaml")),
+    ("probe-corridor-wall-posts", include_str!("../../../scenarios/probe-corridor-wall-posts.yaml")),
+    ("probe-corridor-posts-wall", include_str!("../../../scenarios/probe-corridor-posts-wall.yaml")),
+    ("probe-corridor-posts-posts", include_str!("../../../scenarios/probe-corridor-posts-posts.yaml")),
 ];
 
 /// A walled rectangular arena.
@@ -212,6 +216,16 @@ pub struct CorridorGenSpec {
     /// [0.7, 1.0]); where the corridor is not wider than the passage drawn by 0.1 m, that
     /// narrowing is left out.
     pub narrowing_gap: [f32; 2],
+    /// Probability that one of the two walls, either side, is a row of thin posts instead (a
+    /// railing, chairs or table legs along a hall; default 0). A wall on one side and posts a
+    /// few centimetres wide on the other: a policy that keeps to the middle by the mass of the
+    /// returns rather than the nearest one drifts onto the posts. The caps stay walls.
+    pub posts: f32,
+    /// Radius range of those posts (m, default [0.015, 0.05]).
+    pub post_radius: [f32; 2],
+    /// Spacing range of those posts along the wall's line, one spacing per corridor (m,
+    /// default [0.8, 1.3]).
+    pub post_spacing: [f32; 2],
 }
 
 impl Default for CorridorGenSpec {
@@ -223,6 +237,9 @@ impl Default for CorridorGenSpec {
             overrun: [0.2, 0.8],
             narrowings: [0, 0],
             narrowing_gap: [0.7, 1.0],
+            posts: 0.0,
+            post_radius: [0.015, 0.05],
+            post_spacing: [0.8, 1.3],
         }
     }
 }
@@ -591,6 +608,9 @@ impl Validate for ScenarioSpec {
                 check_interval("procedural.corridors.overrun", c.overrun, 0.0, 100.0)?;
                 check_count("procedural.corridors.narrowings", c.narrowings, 10)?;
                 check_interval("procedural.corridors.narrowing_gap", c.narrowing_gap, 0.3, 100.0)?;
+                check_range("procedural.corridors.posts", c.posts, 0.0, 1.0)?;
+                check_interval("procedural.corridors.post_radius", c.post_radius, 0.005, 1.0)?;
+                check_interval("procedural.corridors.post_spacing", c.post_spacing, 0.2, 100.0)?;
             }
             if let Some(f) = &g.forest {
                 check_range("procedural.forest.probability", f.probability, 0.0, 1.0)?;
@@ -1611,6 +1631,12 @@ fn corridor_walls<R: rand::Rng>(
     let last = (route[n - 1] - route[n - 2]).normalize_or_zero();
     route[0] -= first * overrun;
     route[n - 1] += last * overrun;
+    // The side whose wall is a row of posts, if any; drawn only when asked for, so that other
+    // corridors stay as they were.
+    let mut post_side = None;
+    if c.posts > 0.0 && rng.random_range(0.0..1.0f32) < c.posts {
+        post_side = Some(if rng.random_range(0.0..1.0f32) < 0.5 { -1.0f32 } else { 1.0 });
+    }
     // Each wall's first and last point, for the caps.
     let mut ends: Vec<(Vec2, Vec2)> = Vec::with_capacity(2);
     for side in [-1.0f32, 1.0] {
@@ -1626,6 +1652,10 @@ fn corridor_walls<R: rand::Rng>(
         }
         pts.push(route[n - 1] + normal(route[n - 2], route[n - 1]) * h);
         ends.push((pts[0], pts[pts.len() - 1]));
+        if post_side == Some(side) {
+            corridor_posts(c, &pts, rng, obstacles);
+            continue;
+        }
         for w in pts.windows(2) {
             let spec = if lines {
                 ObstacleSpec::Wall { from: w[0].into(), to: w[1].into() }
@@ -1654,6 +1684,28 @@ fn corridor_walls<R: rand::Rng>(
         }
     }
     shape
+}
+
+/// Posts along a wall's line `pts` in place of the wall ([`CorridorGenSpec::posts`]): one
+/// spacing for the row, the first post a random part of a spacing from the line's start, each
+/// post's radius drawn apart, centred on the line.
+fn corridor_posts<R: rand::Rng>(c: &CorridorGenSpec, pts: &[Vec2], rng: &mut R, obstacles: &mut Vec<Obstacle>) {
+    let spacing = rng.random_range(c.post_spacing[0]..=c.post_spacing[1]);
+    // How far along the current leg the next post stands.
+    let mut along = rng.random_range(0.0..spacing);
+    for w in pts.windows(2) {
+        let e = w[1] - w[0];
+        let len = e.length();
+        while along <= len {
+            let center = w[0] + e * (along / len.max(1e-6));
+            let radius = rng.random_range(c.post_radius[0]..=c.post_radius[1]);
+            if let Ok(o) = Obstacle::new(ObstacleSpec::Circle { center: center.into(), radius }) {
+                obstacles.push(o);
+            }
+            along += spacing;
+        }
+        along -= len;
+    }
 }
 
 /// Where a corridor runs, for what stands in it: the route from the start to the goal
@@ -1884,6 +1936,55 @@ mod tests {
         let (inside, _, _) = counts(4, 0.0);
         // Without corridors the start is rarely this close to a wall (measured 12-26 of 100).
         assert!(inside < 40, "{inside}/{n} starts near a wall at difficulty 0");
+    }
+
+    /// A corridor with `posts` has a row of posts of the drawn radii and one spacing on one
+    /// side, either side over the draws, and a wall on the other; without it, no posts.
+    #[test]
+    fn corridor_posts_replace_one_wall() {
+        let spec = CorridorGenSpec {
+            width: [1.0, 1.4],
+            thickness: [0.1, 0.1],
+            posts: 1.0,
+            post_radius: [0.02, 0.04],
+            post_spacing: [0.9, 1.1],
+            ..Default::default()
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+        let mut sides = [0, 0];
+        for _ in 0..40 {
+            let mut obstacles = Vec::new();
+            // Straight along x, 5 m.
+            corridor_walls(&spec, Vec2::ZERO, Vec2::new(5.0, 0.0), &mut rng, &mut obstacles);
+            let (posts, walls): (Vec<_>, Vec<_>) =
+                obstacles.iter().partition(|o| matches!(o.spec, ObstacleSpec::Circle { .. }));
+            let mut xs = Vec::new();
+            let mut side = 0.0f32;
+            for o in &posts {
+                let ObstacleSpec::Circle { center, radius } = o.spec else { unreachable!() };
+                assert!((0.02..=0.04).contains(&radius), "radius {radius}");
+                // On the wall's line: half the width from the route, all on one side.
+                assert!((0.5..=0.7).contains(&center[1].abs()), "post at {center:?}");
+                assert!(side == 0.0 || side == center[1].signum(), "posts on both sides");
+                side = center[1].signum();
+                xs.push(center[0]);
+            }
+            // The line runs 0.2-0.8 m past both ends, and the row covers it to within a
+            // spacing of either end.
+            assert!(xs.len() >= 4 && xs[0] < 0.9 && xs[xs.len() - 1] > 4.1, "posts at {xs:?}");
+            let gaps: Vec<f32> = xs.windows(2).map(|w| w[1] - w[0]).collect();
+            assert!(gaps.iter().all(|g| (0.9 - 1e-4..=1.1 + 1e-4).contains(g)), "{gaps:?}");
+            assert!(gaps.iter().all(|g| (g - gaps[0]).abs() < 1e-4), "one spacing per row: {gaps:?}");
+            // The wall on the other side, and the start's cap across the end.
+            let Some(ObstacleSpec::Box { center, .. }) = walls.first().map(|o| o.spec.clone()) else { panic!() };
+            assert!((center[1] + 0.6 * side).abs() < 0.15, "the wall at {center:?}, posts on side {side}");
+            sides[(side > 0.0) as usize] += 1;
+        }
+        assert!(sides[0] >= 10 && sides[1] >= 10, "{sides:?}");
+        let plain = CorridorGenSpec { posts: 0.0, ..spec };
+        let mut obstacles = Vec::new();
+        corridor_walls(&plain, Vec2::ZERO, Vec2::new(5.0, 0.0), &mut rng, &mut obstacles);
+        assert!(obstacles.iter().all(|o| !matches!(o.spec, ObstacleSpec::Circle { .. })));
     }
 
     /// Narrowings stand against a wall of the corridor, off its corners, and leave a passage
