@@ -218,8 +218,8 @@ pub struct CorridorGenSpec {
     pub narrowing_gap: [f32; 2],
     /// Probability that one of the two walls, either side, is a row of thin posts instead (a
     /// railing, chairs or table legs along a hall; default 0). A wall on one side and posts a
-    /// few centimetres wide on the other: a policy that keeps to the middle by the mass of the
-    /// returns rather than the nearest one drifts onto the posts. The caps stay walls.
+    /// few centimetres wide on the other: a policy that keeps further from a wall than from
+    /// posts drifts onto the posts (`probe-corridor`). The caps stay walls.
     pub posts: f32,
     /// Radius range of those posts (m, default [0.015, 0.05]).
     pub post_radius: [f32; 2],
