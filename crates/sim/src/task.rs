@@ -702,8 +702,6 @@ pub struct NavEnv {
     plan: Arc<[Vec2]>,
     plan_suffix: Vec<f32>,
     plan_progress: usize,
-    /// The robot's distance from the plan at the last step (m; 0 without a plan).
-    plan_offset: f32,
     /// Where the policy steers: the goal, or the plan's point a lookahead ahead.
     target: Vec2,
     /// The plan controllers are given in [`NavEnv::run_to_end`] when the scenario's static
@@ -754,7 +752,6 @@ impl NavEnv {
             plan: Arc::from(Vec::new()),
             plan_suffix: Vec::new(),
             plan_progress: 0,
-            plan_offset: 0.0,
             target: Vec2::ZERO,
             prior_plan: Arc::from(Vec::new()),
             no_plan: Arc::from(Vec::new()),
@@ -818,14 +815,13 @@ impl NavEnv {
         self.plan_suffix = plan.as_deref().map(crate::plan::suffix_lengths).unwrap_or_default();
         self.plan = plan.map_or_else(|| self.no_plan.clone(), Arc::from);
         self.plan_progress = 0;
-        self.plan_offset = 0.0;
         // A world known in advance is a prior map: controllers get the plan too.
         self.prior_plan =
             if self.setup.scenario.fixed_world().is_some() { self.plan.clone() } else { self.no_plan.clone() };
         self.reach = Some(ep.reach);
         self.last_command = Twist::default();
         self.initial_distance = (self.goal - ep.start.position()).length();
-        self.distance = self.update_target();
+        self.distance = self.update_target().0;
         self.steps = 0;
         self.episode_return = 0.0;
         self.speed_sum = 0.0;
@@ -949,7 +945,7 @@ impl NavEnv {
 
         let d = (self.goal - self.drive.pose.position()).length();
         // Progress towards the goal, along the plan when there is one.
-        let remaining = self.update_target();
+        let (remaining, off_plan) = self.update_target();
         let rw = &task.reward;
         let mut reward = rw.progress * (self.distance - remaining);
         let here = self.drive.pose.position();
@@ -974,8 +970,7 @@ impl NavEnv {
         if rw.idle > 0.0 && self.drive.velocity.linear.abs() < rw.idle_speed {
             reward -= rw.idle;
         }
-        // (`update_target` above measured the offset; it stays 0 without a plan.)
-        reward -= rw.plan_deviation * (self.plan_offset - rw.plan_deviation_band).max(0.0);
+        reward -= rw.plan_deviation * (off_plan - rw.plan_deviation_band).max(0.0);
         self.distance = remaining;
         let outcome = if contact || r_min < task.collision_range {
             reward += rw.collision;
@@ -1055,20 +1050,19 @@ impl NavEnv {
     }
 
     /// Moves the target to where the robot is now (the goal, or the point a lookahead ahead
-    /// along the plan) and returns the distance left to the goal: straight, or via the target
-    /// and the rest of the plan.
-    fn update_target(&mut self) -> f32 {
+    /// along the plan) and returns the distance left to the goal (straight, or via the target
+    /// and the rest of the plan) and the robot's distance from the plan (0 without one).
+    fn update_target(&mut self) -> (f32, f32) {
         let here = self.drive.pose.position();
         match &self.setup.task.plan {
             Some(p) if !self.plan.is_empty() => {
                 let s = crate::plan::follow(&self.plan, &self.plan_suffix, &mut self.plan_progress, here, p.lookahead);
                 self.target = s.point;
-                self.plan_offset = s.offset;
-                (s.point - here).length() + s.rest
+                ((s.point - here).length() + s.rest, s.offset)
             }
             _ => {
                 self.target = self.goal;
-                (self.goal - here).length()
+                ((self.goal - here).length(), 0.0)
             }
         }
     }
