@@ -12,7 +12,7 @@
 
 use crate::config::{Invalid, Validate, check_interval};
 use crate::controller::Twist;
-use crate::lidar::min_pool;
+use crate::lidar::{LidarSpec, min_pool};
 use serde::{Deserialize, Serialize};
 
 /// Largest history a term may ask for (steps).
@@ -298,6 +298,152 @@ impl ObservationLayout {
     }
 }
 
+/// The left-right mirror image of an observation: what the robot would observe in the world
+/// reflected about its own x axis (forward stays forward, left becomes right). Lidar bins are
+/// exchanged with the bins at the opposite bearing, bearings, plan points' `y`, lateral and
+/// angular velocities change sign, distances and forward speeds stay.
+///
+/// Why: the navigation task is symmetric, but a policy trained on it need not be. Training
+/// with mirrored copies of its experience (`train.mirror`) teaches both sides of every lesson
+/// (the RSL-RL symmetry augmentation of Isaac Lab). Built by [`ObservationLayout::mirror`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObservationMirror {
+    /// Value `i` of the mirrored observation is `sign[i] · obs[source[i]]`.
+    source: Vec<usize>,
+    sign: Vec<f32>,
+    /// Largest angle between a lidar bin's mirrored bearing and the bin it is exchanged with
+    /// (rad).
+    max_bin_error: f32,
+}
+
+impl ObservationMirror {
+    /// Length of the observations it mirrors.
+    pub fn len(&self) -> usize {
+        self.source.len()
+    }
+
+    /// Whether it mirrors empty observations.
+    pub fn is_empty(&self) -> bool {
+        self.source.is_empty()
+    }
+
+    /// Largest angle between a lidar bin's mirrored bearing and the centre of the bin that
+    /// takes its value (rad): 0 where the bins lie symmetrically about the robot's x axis; a
+    /// 360-beam scan from -π pooled by 3 is 1° off (its beams are not placed symmetrically).
+    pub fn max_bin_error(&self) -> f32 {
+        self.max_bin_error
+    }
+
+    /// Writes the mirror image of each row of `obs` (`[rows][len]`) to `out` (same shape).
+    pub fn apply(&self, obs: &[f32], out: &mut [f32]) {
+        let n = self.source.len();
+        assert_eq!(obs.len(), out.len(), "mirror: input and output of one shape");
+        assert_eq!(obs.len() % n.max(1), 0, "mirror: rows of {n} values");
+        for (row, dst) in obs.chunks_exact(n).zip(out.chunks_exact_mut(n)) {
+            for ((d, &s), &g) in dst.iter_mut().zip(&self.source).zip(&self.sign) {
+                *d = g * row[s];
+            }
+        }
+    }
+
+    /// The mirror image of `obs` (rows of [`Self::len`]).
+    pub fn mirrored(&self, obs: &[f32]) -> Vec<f32> {
+        let mut out = vec![0.0; obs.len()];
+        self.apply(obs, &mut out);
+        out
+    }
+}
+
+impl ObservationLayout {
+    /// The mirror of this layout's observations when the scan is `lidar`'s, or why there is
+    /// none: the scanner must sit on the robot's x axis facing forward, and each lidar term's
+    /// bins must pair up with bins at the opposite bearing (a full turn, or a field of view
+    /// symmetric about the x axis), each pair within half a bin of exact.
+    pub fn mirror(&self, lidar: &LidarSpec) -> Result<ObservationMirror, Invalid> {
+        if lidar.mount.y.abs() > 1e-6 || lidar.mount.yaw.abs() > 1e-6 {
+            return Err(Invalid::new(
+                "lidar.mount",
+                format!(
+                    "a scanner on the robot's x axis facing forward (y = 0, yaw = 0) for a mirrored observation, got y {} and yaw {}",
+                    lidar.mount.y, lidar.mount.yaw
+                ),
+            ));
+        }
+        let mut source = Vec::with_capacity(self.len());
+        let mut sign = Vec::with_capacity(self.len());
+        let mut max_bin_error = 0.0f32;
+        for (start, term) in self.spans() {
+            let (inner, steps) = match term {
+                ObsTerm::History { term, steps, .. } => (&**term, *steps),
+                t => (t, 1),
+            };
+            // The map of one value of `inner`, relative to its first index.
+            let (map, signs): (Vec<usize>, Vec<f32>) = match inner {
+                ObsTerm::Lidar { beams, .. } => {
+                    let (map, err) = lidar_bin_mirror(lidar, *beams)?;
+                    max_bin_error = max_bin_error.max(err);
+                    (map, vec![1.0; *beams])
+                }
+                ObsTerm::PlanAhead { points, .. } => {
+                    ((0..2 * points).collect(), (0..2 * points).map(|i| if i % 2 == 1 { -1.0 } else { 1.0 }).collect())
+                }
+                ObsTerm::GoalBearing | ObsTerm::LastAngular | ObsTerm::Lateral | ObsTerm::Angular => {
+                    (vec![0], vec![-1.0])
+                }
+                ObsTerm::GoalDistance | ObsTerm::LastLinear | ObsTerm::Linear => (vec![0], vec![1.0]),
+                ObsTerm::History { .. } => {
+                    unreachable!("histories of histories are refused by ObservationLayout::check")
+                }
+            };
+            let w = map.len();
+            for s in 0..steps {
+                source.extend(map.iter().map(|m| start + s * w + m));
+                sign.extend_from_slice(&signs);
+            }
+        }
+        Ok(ObservationMirror { source, sign, max_bin_error })
+    }
+}
+
+/// Which pooled bin of `lidar`'s scan (min-pooled to `beams`) lies at the opposite bearing of
+/// each bin, and the largest angle between a mirrored bearing and its partner's (rad).
+fn lidar_bin_mirror(lidar: &LidarSpec, beams: usize) -> Result<(Vec<usize>, f32), Invalid> {
+    let group = lidar.beams / beams;
+    let inc = lidar.angle_increment();
+    let width = group as f32 * inc;
+    // A bin's bearing: the middle of its beams.
+    let centre = |k: usize| lidar.angle_min + (k * group) as f32 * inc + (group - 1) as f32 * 0.5 * inc;
+    let full = lidar.is_full_circle();
+    let gap = |a: f32, b: f32| {
+        if full {
+            let d = (a - b).rem_euclid(std::f32::consts::TAU);
+            d.min(std::f32::consts::TAU - d)
+        } else {
+            (a - b).abs()
+        }
+    };
+    let mut map = Vec::with_capacity(beams);
+    let mut worst = 0.0f32;
+    for k in 0..beams {
+        let want = -centre(k);
+        let (best, err) =
+            (0..beams).map(|j| (j, gap(centre(j), want))).min_by(|a, b| a.1.total_cmp(&b.1)).expect("at least one bin");
+        worst = worst.max(err);
+        map.push(best);
+    }
+    let paired = map.iter().enumerate().all(|(k, &j)| map[j] == k);
+    if worst > 0.5 * width + 1e-4 || !paired {
+        return Err(Invalid::new(
+            "lidar",
+            format!(
+                "a scan whose {beams} pooled bins pair up at opposite bearings for a mirrored observation (a full turn, or angle_min = -angle_max), got angle_min {} and angle_max {}",
+                lidar.angle_min, lidar.angle_max
+            ),
+        ));
+    }
+    Ok((map, worst))
+}
+
 impl Validate for ObservationLayout {
     fn validate(&self) -> Result<(), Invalid> {
         self.check()
@@ -526,6 +672,7 @@ fn write_term(
 mod tests {
     use super::*;
     use crate::config::{from_yaml_str, to_yaml_string};
+    use crate::geometry::{Pose2, Vec2};
 
     fn inputs(ranges: &[f32], d: f32, b: f32) -> ObservationInputs<'_> {
         ObservationInputs {
@@ -541,6 +688,86 @@ mod tests {
 
     fn history(term: ObsTerm, steps: usize, order: HistoryOrder, fill: HistoryFill) -> ObsTerm {
         ObsTerm::History { term: Box::new(term), steps, stride: 1, order, fill }
+    }
+
+    /// The observation of a scan `f(bearing)` mirrored equals the observation of the mirrored
+    /// scan `f(-bearing)` with mirrored goal, plan and velocities, on the shipped robots' scan
+    /// geometries and a layout with every kind of term.
+    #[test]
+    fn mirror_is_the_observation_of_the_mirrored_world() {
+        let layout: ObservationLayout = from_yaml_str(
+            "t.yaml",
+            "- history: {term: {lidar: {beams: 120, clip: [0.15, 3.0]}}, steps: 3, stride: 2, order: oldest_first}\n\
+             - goal_distance\n- goal_bearing\n- plan_ahead: {points: 3, spacing: 0.3}\n\
+             - last_linear\n- last_angular\n- linear\n- lateral\n- angular\n\
+             - history: {term: goal_bearing, steps: 2, order: newest_first}\n",
+        )
+        .unwrap();
+        // A scene with nothing symmetric about it, changing with time.
+        let range = |a: f32, t: f32| 1.4 + 0.5 * (a + 0.3 * t).sin() + 0.2 * (3.0 * a).cos();
+        let jackal = LidarSpec { beams: 720, angle_min: -2.356_194_5, angle_max: 2.356_194_5, ..Default::default() };
+        for (spec, tol) in [(LidarSpec::default(), 0.05), (jackal, 1e-3)] {
+            let mirror = layout.mirror(&spec).unwrap();
+            assert_eq!(mirror.len(), layout.len());
+            let bin_width = (spec.beams / 120) as f32 * spec.angle_increment();
+            assert!(mirror.max_bin_error() <= 0.5 * bin_width);
+            let (mut a, mut b) = (ObservationBuilder::new(&layout), ObservationBuilder::new(&layout));
+            let (mut oa, mut ob) = (vec![0.0; layout.len()], vec![0.0; layout.len()]);
+            for t in 0..5 {
+                let t = t as f32;
+                let ra: Vec<f32> = (0..spec.beams).map(|i| range(spec.beam_angle(i), t)).collect();
+                let rb: Vec<f32> = (0..spec.beams).map(|i| range(-spec.beam_angle(i), t)).collect();
+                let plan = [Vec2::new(0.3, 0.1 * t), Vec2::new(0.6, -0.2), Vec2::new(0.8, 0.5)];
+                let plan_m: Vec<Vec2> = plan.iter().map(|p| Vec2::new(p.x, -p.y)).collect();
+                let ia = ObservationInputs {
+                    ranges: &ra,
+                    goal_distance: 2.0 + t,
+                    goal_bearing: 0.4 - 0.2 * t,
+                    last_command: Twist::new(0.3, 0.1 * t - 0.2),
+                    velocity: Twist::new(0.25, 0.3 - 0.1 * t),
+                    lateral_velocity: 0.05 * t,
+                    plan_ahead: &plan,
+                };
+                let ib = ObservationInputs {
+                    ranges: &rb,
+                    goal_bearing: -ia.goal_bearing,
+                    last_command: Twist::new(0.3, -ia.last_command.angular),
+                    velocity: Twist::new(0.25, -ia.velocity.angular),
+                    lateral_velocity: -ia.lateral_velocity,
+                    plan_ahead: &plan_m,
+                    ..ia
+                };
+                a.write(&ia, &mut oa, || 0.0);
+                b.write(&ib, &mut ob, || 0.0);
+                a.commit();
+                b.commit();
+                let m = mirror.mirrored(&oa);
+                // Away from the scan, exact; a bin may read its partner's neighbourhood (the
+                // bins are up to 1° off symmetric), so a smooth scene differs a little.
+                let scan = 3 * 120;
+                for (i, (x, y)) in m.iter().zip(&ob).enumerate() {
+                    let tol = if i < scan { tol } else { 1e-6 };
+                    assert!((x - y).abs() <= tol, "value {i}: mirrored {x}, mirrored world {y} (t {t})");
+                }
+                assert_eq!(mirror.mirrored(&m), oa, "mirroring twice gives the observation back");
+            }
+        }
+    }
+
+    #[test]
+    fn scans_that_cannot_be_mirrored_are_named() {
+        let layout = ObservationLayout::default();
+        let off_axis = LidarSpec { mount: Pose2::new(0.0, 0.05, 0.0), ..Default::default() };
+        let e = layout.mirror(&off_axis).unwrap_err();
+        assert_eq!(e.key, "lidar.mount");
+        assert!(e.expected.contains("got y 0.05"), "{}", e.expected);
+        let lopsided = LidarSpec { beams: 240, angle_min: -2.0, angle_max: 1.0, ..Default::default() };
+        let e = layout.mirror(&lopsided).unwrap_err();
+        assert_eq!(e.key, "lidar");
+        assert!(e.expected.contains("angle_min -2") && e.expected.contains("angle_max 1"), "{}", e.expected);
+        // A 270° scan symmetric about the x axis pairs exactly.
+        let jackal = LidarSpec { beams: 720, angle_min: -2.356_194_5, angle_max: 2.356_194_5, ..Default::default() };
+        assert!(layout.mirror(&jackal).unwrap().max_bin_error() < 1e-4);
     }
 
     #[test]

@@ -111,6 +111,14 @@ pub struct PpoConfig {
     /// A classical controller whose commands the policy is also taught to imitate early in
     /// training (kickstarting; absent: PPO alone).
     pub teacher: Option<TeacherConfig>,
+    /// Replace a random half of every minibatch by its left-right mirror image (the world
+    /// reflected about the robot's x axis: scan bins exchanged across the x axis, bearings,
+    /// plan `y` and turn rates negated; see `rlnav_sim::observation::ObservationMirror`),
+    /// with the same advantages and returns, so that the policy learns each lesson for both
+    /// sides (symmetry augmentation, as RSL-RL's, which appends the copies instead).
+    /// Feed-forward networks only; the observation statistics are kept mirror-symmetric too.
+    /// Default false.
+    pub mirror: bool,
 }
 
 /// `train.max_log_std`: a fixed ceiling or one that moves linearly over the run.
@@ -206,6 +214,7 @@ impl Default for PpoConfig {
             threads: 0,
             learner: Learner::Auto,
             teacher: None,
+            mirror: false,
         }
     }
 }
@@ -460,6 +469,10 @@ impl Validate for RunConfig {
             if t.minibatch_size % t.seq_len != 0 {
                 return Err(Invalid::new("train.minibatch_size", "a multiple of seq_len for an LSTM policy"));
             }
+        }
+        // The scan and the action range are checked per robot and stage when training starts.
+        if t.mirror && self.network.is_recurrent() {
+            return Err(Invalid::new("train.mirror", "false for a recurrent network (its state cannot be mirrored)"));
         }
         if let Some(k) = &t.teacher {
             if k.controller != "dwa" {

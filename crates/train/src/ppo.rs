@@ -17,6 +17,7 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
 use rand_pcg::Pcg64Mcg;
 use rlnav_policy::{ActorCritic, NetworkConfig, RunningMeanStd};
+use rlnav_sim::observation::ObservationMirror;
 use rlnav_sim::task::{EpisodeStats, SimError};
 use rlnav_sim::vec_env::VecEnv;
 
@@ -118,6 +119,8 @@ pub struct Ppo {
     teacher_weight: f32,
     /// This epoch's ceiling on the log standard deviations (`train.max_log_std`).
     log_std_ceiling: Option<f32>,
+    /// `train.mirror`: half of each minibatch is trained on as its mirror image.
+    mirror: Option<ObservationMirror>,
 }
 
 /// Gradient-norm clipping over all parameters together (burn's own clipping is per tensor).
@@ -295,7 +298,18 @@ impl Ppo {
             teacher: cfg.teacher.as_ref().map(|t| Teacher::new(t, cfg.num_actors)),
             teacher_weight: 0.0,
             log_std_ceiling: cfg.max_log_std.map(|c| c.start()),
+            mirror: None,
         }
+    }
+
+    /// Trains on mirrored copies of the experience too (`train.mirror`), mirrored by `mirror`
+    /// (which must fit the observation length). The observation statistics are updated with
+    /// both copies from now on, so that they stay mirror-symmetric and mirroring a normalised
+    /// observation is normalising the mirrored one.
+    pub fn set_mirror(&mut self, mirror: ObservationMirror) {
+        assert_eq!(mirror.len(), self.buffer.obs_dim, "a mirror of the observation's length");
+        assert_eq!(self.act_dim, 2, "a mirror of (linear, angular) actions");
+        self.mirror = Some(mirror);
     }
 
     /// Sets the imitation weight for `epoch` (`train.teacher`'s schedule); while it is 0 the
@@ -367,7 +381,16 @@ impl Ppo {
         let mut x = raw.to_vec();
         if self.cfg.normalize_input {
             if update {
-                self.obs_norm.update(raw);
+                match &self.mirror {
+                    // Both copies in one update: the statistics of a mirrored value and of its
+                    // partner stay equal, and those of a negated one stay centred on 0.
+                    Some(m) => {
+                        let mut both = raw.to_vec();
+                        both.extend(m.mirrored(raw));
+                        self.obs_norm.update(&both);
+                    }
+                    None => self.obs_norm.update(raw),
+                }
             }
             self.obs_norm.normalize(&mut x);
         }
@@ -595,6 +618,25 @@ impl Ppo {
                         ret.push(targets[i]);
                         old_v.push(old_values[i]);
                         starts.push(if self.buffer.starts[i] { 0.0f32 } else { 1.0 });
+                    }
+                }
+                if let Some(m) = &self.mirror {
+                    // A random half of the samples is replaced by its mirror image, which has
+                    // the same return and advantage (the task is symmetric) and the behaviour
+                    // probability of the sample it mirrors (the collecting policy, mirrored,
+                    // drew it with that probability). In place, so an update costs what it
+                    // did; RSL-RL appends the mirrored copies instead, doubling it.
+                    let mut row = vec![0.0f32; d];
+                    for k in 0..rows {
+                        if self.rng.random_bool(0.5) {
+                            m.apply(&obs[k * d..(k + 1) * d], &mut row);
+                            obs[k * d..(k + 1) * d].copy_from_slice(&row);
+                            act[k * a + 1] = -act[k * a + 1];
+                            old_mu_v[k * a + 1] = -old_mu_v[k * a + 1];
+                            if teach {
+                                teacher[k * a + 1] = -teacher[k * a + 1];
+                            }
+                        }
                     }
                 }
                 if self.cfg.normalize_advantage && adv.len() > 1 {
@@ -854,6 +896,118 @@ mod tests {
                 "{learner:?}: density: {at:?} vs {beyond:?}"
             );
         }
+    }
+
+    /// An epoch in which the goal always lies to the left and turning left paid: with
+    /// `train.mirror` the update also teaches turning right when the goal lies to the right,
+    /// on either learner; without it, the policy learns to turn left there too.
+    #[test]
+    fn mirror_teaches_the_side_never_seen() {
+        // goal_distance, goal_bearing, last_angular: the two last change sign in a mirror.
+        let layout = rlnav_sim::observation::ObservationLayout(vec![
+            rlnav_sim::observation::ObsTerm::GoalDistance,
+            rlnav_sim::observation::ObsTerm::GoalBearing,
+            rlnav_sim::observation::ObsTerm::LastAngular,
+        ]);
+        let mirror = layout.mirror(&Default::default()).unwrap();
+        for learner in [Learner::Fast, Learner::Burn] {
+            let turn = |mirrored: bool| {
+                let cfg = PpoConfig {
+                    num_actors: 8,
+                    horizon_length: 16,
+                    minibatch_size: 32,
+                    mini_epochs: 8,
+                    learning_rate: 0.01,
+                    lr_schedule: LrSchedule::Linear,
+                    learner,
+                    threads: 1,
+                    ..Default::default()
+                };
+                let network = NetworkConfig { hidden: vec![16], init_log_std: -1.0, ..Default::default() };
+                let mut ppo = Ppo::new(&cfg, &network, 3, 2, rlnav_policy::training_device(), 3);
+                if mirrored {
+                    ppo.set_mirror(mirror.clone());
+                }
+                let b = &mut ppo.buffer;
+                for i in 0..b.log_probs.len() {
+                    let good = i % 2 == 0;
+                    let w = if good { 0.8 } else { -0.8 };
+                    b.obs[i * 3..(i + 1) * 3].copy_from_slice(&[
+                        1.0 + 0.1 * (i % 7) as f32,
+                        0.3 + 0.1 * (i % 5) as f32,
+                        0.2,
+                    ]);
+                    b.actions[i * 2..(i + 1) * 2].copy_from_slice(&[0.0, w]);
+                    b.mus[i * 2..(i + 1) * 2].copy_from_slice(&[0.0, 0.0]);
+                    b.log_probs[i] = action_log_prob(0.0, 0.0, -1.0, false).0 + action_log_prob(w, 0.0, -1.0, false).0;
+                    b.advantages[i] = if good { 1.0 } else { -1.0 };
+                }
+                ppo.update();
+                let net = ppo.inference_net();
+                let left = [1.2, 0.5, 0.2];
+                let (mu, _) = ppo.act_mean(&net, &[left, mirror.mirrored(&left).try_into().unwrap()].concat(), None);
+                (mu[1], mu[3])
+            };
+            let (left, right) = turn(true);
+            // One update moves each mean until the clip stops it (about 0.3 here); the two
+            // sides start from an untrained network's different means.
+            assert!(
+                left > 0.2 && right < -0.1,
+                "{learner:?}, mirrored: turns {left} (goal left), {right} (goal right)"
+            );
+            let (left, right) = turn(false);
+            assert!(left > 0.2 && right > 0.1, "{learner:?}, plain: turns {left} (goal left), {right} (goal right)");
+        }
+    }
+
+    /// With `train.mirror` the observation statistics gathered while collecting stay
+    /// mirror-symmetric, so that the mirror of a normalised observation (what the update
+    /// trains on) is the normalised mirrored observation.
+    #[test]
+    fn mirrored_statistics_commute_with_normalising() {
+        use rlnav_sim::observation::{ObsTerm, ObservationLayout};
+        let mut task = rlnav_sim::task::TaskConfig::default();
+        task.observation = ObservationLayout(vec![
+            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
+            ObsTerm::GoalDistance,
+            ObsTerm::GoalBearing,
+            ObsTerm::PlanAhead { points: 2, spacing: 0.3 },
+            ObsTerm::LastAngular,
+            ObsTerm::Angular,
+        ]);
+        let robot = rlnav_sim::RobotSpec::load("turtlebot3-burger").unwrap();
+        let mirror = task.observation.mirror(&robot.lidar).unwrap();
+        let scenario = rlnav_sim::scenario::ScenarioSpec::load("random-static").unwrap();
+        let setup = std::sync::Arc::new(rlnav_sim::task::EnvSetup::new(scenario, robot, task).unwrap());
+        let cfg = PpoConfig { num_actors: 4, horizon_length: 16, minibatch_size: 32, threads: 1, ..Default::default() };
+        let mut ppo = Ppo::new(&cfg, &NetworkConfig::default(), setup.obs_dim(), 2, rlnav_policy::training_device(), 5);
+        ppo.set_mirror(mirror.clone());
+        let mut env = VecEnv::new(setup.clone(), 4, 5, 1).unwrap();
+        ppo.collect(&mut env, &mut Vec::new()).unwrap();
+        let (mean, var) = (&ppo.obs_norm.mean, &ppo.obs_norm.var);
+        let bearing = 121;
+        assert!(
+            mean[bearing].abs() < 1e-9 && var[bearing] > 0.01,
+            "bearing centred: {} {}",
+            mean[bearing],
+            var[bearing]
+        );
+        assert!((mean[0] - mean[119]).abs() < 1e-9 && (mean[10] - mean[109]).abs() < 1e-9, "paired bins alike");
+        let raw = env.obs.clone();
+        let mut a = mirror.mirrored(&raw);
+        ppo.obs_norm.normalize(&mut a);
+        let mut b = raw.clone();
+        ppo.obs_norm.normalize(&mut b);
+        let b = mirror.mirrored(&b);
+        for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+            assert!((x - y).abs() < 1e-4, "value {i}: {x} vs {y}");
+        }
+        // Without the mirror the statistics are those of one side.
+        let mut plain =
+            Ppo::new(&cfg, &NetworkConfig::default(), setup.obs_dim(), 2, rlnav_policy::training_device(), 5);
+        let mut env = VecEnv::new(setup, 4, 5, 1).unwrap();
+        plain.collect(&mut env, &mut Vec::new()).unwrap();
+        assert!(plain.obs_norm.mean[bearing].abs() > 1e-3, "one-sided: {}", plain.obs_norm.mean[bearing]);
     }
 
     /// The tail log-probability and its derivatives agree with central differences, on both

@@ -9,6 +9,7 @@ use burn::store::{BurnpackStore, ModuleSnapshot};
 use rlnav_policy::{ActorCritic, RunningMeanStd, training_device};
 use rlnav_sim::RobotSpec;
 use rlnav_sim::config::ConfigError;
+use rlnav_sim::observation::ObservationMirror;
 use rlnav_sim::scenario::ScenarioSpec;
 use rlnav_sim::task::{EnvSetup, EpisodeStats, Outcome, SimError, TaskConfig};
 use rlnav_sim::vec_env::VecEnv;
@@ -242,6 +243,43 @@ fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Vec<Arc<EnvSetup>
         setups.extend(env_setup(cfg, scenario, task.clone(), levels)?);
     }
     Ok(setups)
+}
+
+/// The one observation mirror of every stage's setups (`train.mirror`): each robot's scan must
+/// mirror, each stage's turn range be symmetric, and all agree on where each value goes.
+fn mirror_of(setups: &[Vec<Arc<EnvSetup>>]) -> Result<ObservationMirror, TrainError> {
+    let invalid = |setup: &EnvSetup, expected: String| {
+        TrainError::Config(ConfigError::Invalid {
+            file: format!("<robot {}>", setup.robot.name),
+            key: "train.mirror".into(),
+            expected,
+        })
+    };
+    let mut found: Option<ObservationMirror> = None;
+    for setup in setups.iter().flatten() {
+        let [lo, hi] = setup.task.action.angular;
+        if (lo + hi).abs() > 1e-6 {
+            return Err(invalid(
+                setup,
+                format!(
+                    "task.action.angular symmetric about 0 (a turn mirrors to the opposite turn), got [{lo}, {hi}]"
+                ),
+            ));
+        }
+        let m = setup
+            .task
+            .observation
+            .mirror(&setup.robot.lidar)
+            .map_err(|e| invalid(setup, format!("{}: {}", e.key, e.expected)))?;
+        match &found {
+            Some(f) if *f != m => {
+                return Err(invalid(setup, "robots whose scans mirror alike (bins paired the same way)".into()));
+            }
+            Some(_) => {}
+            None => found = Some(m),
+        }
+    }
+    Ok(found.expect("a run has at least one setup"))
 }
 
 /// The hand-written learner's Adam state in a checkpoint (burn's learner writes `optimizer.bpk`).
@@ -526,6 +564,9 @@ pub fn train(
         Ok(Some(EvalSummary::of(&all)))
     };
     let mut ppo = Ppo::new(&cfg.train, &cfg.network, obs_dim, 2, training_device(), cfg.seed);
+    if cfg.train.mirror {
+        ppo.set_mirror(mirror_of(&setups)?);
+    }
 
     let mut st = TrainerState {
         epoch: 0,

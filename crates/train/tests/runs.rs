@@ -52,6 +52,29 @@ fn same_seed_same_run() {
     }
 }
 
+/// `train.mirror` trains (on mirrored samples: the run differs from the plain one), and a
+/// setup that cannot be mirrored is refused before training, naming the key and the reason.
+#[test]
+fn mirrored_runs_train_and_unmirrorable_setups_are_refused() {
+    let mirrored = |extra: &[&str]| {
+        let mut set = vec!["train.max_epochs=2".to_string(), "train.threads=2".into(), "train.mirror=true".into()];
+        set.extend(extra.iter().map(|s| s.to_string()));
+        load_run_config(Some("smoke"), &set)
+    };
+    let (a, b) = (tmp("mirror-a"), tmp("mirror-b"));
+    train(&mirrored(&[]).unwrap(), &opts(&a, false), &mut |_| {}).unwrap();
+    train(&smoke(2), &opts(&b, false), &mut |_| {}).unwrap();
+    assert_ne!(metrics(&a), metrics(&b), "the mirrored run differs");
+    let cfg = mirrored(&["task.action.angular=[-0.3, 0.5]"]).unwrap();
+    let e = train(&cfg, &opts(&tmp("mirror-c"), false), &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("train.mirror") && e.contains("[-0.3, 0.5]"), "{e}");
+    let e = mirrored(&["network.lstm_units=8"]).unwrap_err().to_string();
+    assert!(e.contains("train.mirror") && e.contains("recurrent"), "{e}");
+    for d in [a, b] {
+        std::fs::remove_dir_all(d).ok();
+    }
+}
+
 #[test]
 fn a_run_stops_once_an_evaluation_reaches_its_target() {
     let out = tmp("target");
