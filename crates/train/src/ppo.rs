@@ -966,8 +966,7 @@ mod tests {
     #[test]
     fn mirrored_statistics_commute_with_normalising() {
         use rlnav_sim::observation::{ObsTerm, ObservationLayout};
-        let mut task = rlnav_sim::task::TaskConfig::default();
-        task.observation = ObservationLayout(vec![
+        let observation = ObservationLayout(vec![
             ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
             ObsTerm::GoalDistance,
             ObsTerm::GoalBearing,
@@ -975,6 +974,7 @@ mod tests {
             ObsTerm::LastAngular,
             ObsTerm::Angular,
         ]);
+        let task = rlnav_sim::task::TaskConfig { observation, ..Default::default() };
         let robot = rlnav_sim::RobotSpec::load("turtlebot3-burger").unwrap();
         let mirror = task.observation.mirror(&robot.lidar).unwrap();
         let scenario = rlnav_sim::scenario::ScenarioSpec::load("random-static").unwrap();
