@@ -302,8 +302,8 @@ impl Ppo {
         }
     }
 
-    /// Trains on mirrored copies of the experience too (`train.mirror`), mirrored by `mirror`
-    /// (which must fit the observation length). The observation statistics are updated with
+    /// Trains a random half of each minibatch as its mirror image (`train.mirror`), mirrored
+    /// by `mirror` (which must fit the observation length). The observation statistics are updated with
     /// both copies from now on, so that they stay mirror-symmetric and mirroring a normalised
     /// observation is normalising the mirrored one.
     pub fn set_mirror(&mut self, mirror: ObservationMirror) {
