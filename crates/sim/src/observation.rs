@@ -329,7 +329,8 @@ impl ObservationMirror {
 
     /// Largest angle between a lidar bin's mirrored bearing and the centre of the bin that
     /// takes its value (rad): 0 where the bins lie symmetrically about the robot's x axis; a
-    /// 360-beam scan from -π pooled by 3 is 1° off (its beams are not placed symmetrically).
+    /// 360-beam scan from -π pooled by 3 is 1° off (its groups of three beams start at -π, so
+    /// a group's mirror image straddles two groups).
     pub fn max_bin_error(&self) -> f32 {
         self.max_bin_error
     }
