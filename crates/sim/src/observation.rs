@@ -409,6 +409,12 @@ impl ObservationLayout {
 /// Which pooled bin of `lidar`'s scan (min-pooled to `beams`) lies at the opposite bearing of
 /// each bin, and the largest angle between a mirrored bearing and its partner's (rad).
 fn lidar_bin_mirror(lidar: &LidarSpec, beams: usize) -> Result<(Vec<usize>, f32), Invalid> {
+    if beams == 0 || lidar.beams % beams != 0 {
+        return Err(Invalid::new(
+            "lidar.beams",
+            format!("a multiple of the lidar term's {beams} bins for a mirrored observation, got {}", lidar.beams),
+        ));
+    }
     let group = lidar.beams / beams;
     let inc = lidar.angle_increment();
     let width = group as f32 * inc;
@@ -766,6 +772,8 @@ mod tests {
         let e = layout.mirror(&lopsided).unwrap_err();
         assert_eq!(e.key, "lidar");
         assert!(e.expected.contains("angle_min -2") && e.expected.contains("angle_max 1"), "{}", e.expected);
+        let coarse = LidarSpec { beams: 60, ..Default::default() };
+        assert_eq!(layout.mirror(&coarse).unwrap_err().key, "lidar.beams");
         // A 270° scan symmetric about the x axis pairs exactly.
         let jackal = LidarSpec { beams: 720, angle_min: -2.356_194_5, angle_max: 2.356_194_5, ..Default::default() };
         assert!(layout.mirror(&jackal).unwrap().max_bin_error() < 1e-4);
