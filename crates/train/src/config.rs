@@ -294,8 +294,8 @@ pub struct EvalConfig {
     /// Episodes per held-out scenario and evaluation (default 20).
     pub heldout_episodes: usize,
     /// Which evaluation picks the best checkpoint: `heldout` (the default; `scenario` when
-    /// there are no held-out scenarios) or `scenario`, which keeps the held-out rooms for
-    /// measuring alone (no selection bias on them).
+    /// there are no held-out scenarios), `scenario`, which keeps the held-out rooms for
+    /// measuring alone (no selection bias on them), or `last`: no pick, the run's last policy.
     pub select: Selection,
 }
 
@@ -308,6 +308,11 @@ pub enum Selection {
     Heldout,
     /// The evaluation scenario.
     Scenario,
+    /// None: the policy of the last epoch. The evaluations only measure. Picking the highest
+    /// of many evaluations picks their noise as well as the policy (the winner's curse), and
+    /// a schedule that ends on a settled policy (`lr_schedule: linear`) has nothing to pick
+    /// from.
+    Last,
 }
 
 impl Default for EvalConfig {

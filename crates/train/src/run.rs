@@ -744,14 +744,17 @@ pub fn train(
         // The best checkpoint: on the held-out rooms when there are any (unless told not to).
         let selected = match cfg.eval.select {
             crate::config::Selection::Heldout => heldout_result.or(eval_result),
-            crate::config::Selection::Scenario => eval_result,
+            crate::config::Selection::Scenario | crate::config::Selection::Last => eval_result,
         };
         if let Some(rate) = selected.map(|r| r.success_rate)
             && rate > st.best_success_rate
         {
             st.best_success_rate = rate;
             st.best_epoch = st.epoch;
-            save_checkpoint(&out.join("best"), &ppo, &st)?;
+            // With `last` the best evaluation is reported, not kept.
+            if cfg.eval.select != crate::config::Selection::Last {
+                save_checkpoint(&out.join("best"), &ppo, &st)?;
+            }
         }
         progress(&report);
 

@@ -290,6 +290,30 @@ fn resume_errors_are_clear() {
 }
 
 #[test]
+fn select_last_keeps_the_last_policy_and_picks_no_checkpoint() {
+    let (picked, last) = (tmp("select-scenario"), tmp("select-last"));
+    let mut cfg = smoke(4);
+    cfg.eval.every = 2;
+    cfg.eval.select = rlnav_train::config::Selection::Scenario;
+    let s = train(&cfg, &opts(&picked, false), &mut |_| {}).unwrap();
+    assert!(picked.join("best/state.json").is_file(), "a picked checkpoint");
+    assert_eq!(s.final_epoch, s.best_epoch, "the final test runs on the pick");
+    cfg.eval.select = rlnav_train::config::Selection::Last;
+    let s = train(&cfg, &opts(&last, false), &mut |_| {}).unwrap();
+    assert!(!last.join("best").exists(), "no checkpoint is picked");
+    assert_eq!(s.final_epoch, 4, "the final test runs on the last epoch's policy");
+    assert!(s.best_epoch == 2 || s.best_epoch == 4, "the best evaluation is still reported: {s:?}");
+    // The exported file is the last checkpoint's: the same bytes as exporting it by name.
+    let (bytes, _) = rlnav_train::export::export_run(&last, "checkpoint").unwrap();
+    assert_eq!(std::fs::read(last.join("policy.onnx")).unwrap(), bytes);
+    // The same seed: both runs trained alike, only the choice differs.
+    assert_eq!(metrics(&picked), metrics(&last));
+    for d in [picked, last] {
+        std::fs::remove_dir_all(d).ok();
+    }
+}
+
+#[test]
 fn held_out_rooms_several_robots_and_a_plan() {
     let out = tmp("heldout");
     let mut cfg = smoke(2);
