@@ -128,9 +128,9 @@ pub struct Summary {
     pub steps_per_s: f64,
     /// Whether the run was stopped before `max_epochs` (Ctrl-C).
     pub interrupted: bool,
-    /// The final test: the best checkpoint (chosen by the periodic evaluations) evaluated on
-    /// `eval.episodes` fresh episodes, drawn from a seed neither training nor model selection
-    /// used.
+    /// The final test: the best checkpoint (chosen by the periodic evaluations; the last one
+    /// with `eval.select: last`) evaluated on `eval.episodes` fresh episodes, drawn from a seed
+    /// neither training nor model selection used.
     pub final_eval: Option<EvalSummary>,
     /// Epoch of the checkpoint the final test ran on.
     pub final_epoch: usize,
