@@ -154,6 +154,23 @@ impl Mover {
         self
     }
 
+    /// The mover with its phase set so that `t` seconds into the episode it is `along` metres
+    /// along its path from the first waypoint, on its way out (`outward`) or, for a
+    /// back-and-forth path, on its way back; a `once` path that cannot be there at `t` (it would
+    /// have to start before its first waypoint) starts there instead.
+    pub fn timed(mut self, along: f32, t: f32, outward: bool) -> Self {
+        let along = along.clamp(0.0, self.length);
+        self.phase = match self.mode {
+            PathMode::BackAndForth => {
+                let target = if outward { along } else { 2.0 * self.length - along };
+                (target - self.speed * t).rem_euclid((2.0 * self.length).max(1e-6))
+            }
+            PathMode::Loop | PathMode::Repeat => (along - self.speed * t).rem_euclid(self.length.max(1e-6)),
+            PathMode::Once => (along - self.speed * t).max(0.0),
+        };
+        self.at_time(0.0)
+    }
+
     /// Moves the mover to where it is `t` seconds into the episode.
     pub fn set_time(&mut self, t: f32) {
         let mut s = self.phase + self.speed * t;
@@ -279,6 +296,37 @@ mod tests {
         assert!((m.signed_distance(Vec2::new(0.0, 0.5)) - 0.4).abs() < 1e-5);
         let fp = Footprint::new(&crate::robot::FootprintSpec::Circle { radius: 0.1 }).unwrap();
         assert!(m.touches(&fp, &Pose2::new(0.0, 0.19, 0.0)) && !m.touches(&fp, &Pose2::new(0.0, 0.21, 0.0)));
+    }
+
+    /// A timed mover is where it was asked to be at that time, going the way asked, on every
+    /// kind of path; a `once` crossing that would have to start before its start starts there.
+    #[test]
+    fn timed_movers_are_there_on_time() {
+        let spec = |mode| MoverSpec {
+            shape: MoverShape::Circle { radius: 0.2 },
+            waypoints: vec![[0.0, 0.0], [4.0, 0.0]],
+            speed: [0.5, 0.5],
+            mode,
+            random_phase: true,
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(1);
+        for mode in [PathMode::BackAndForth, PathMode::Loop, PathMode::Repeat] {
+            for (along, t, outward) in [(1.5, 7.3, true), (3.0, 0.0, true), (0.5, 21.0, false), (2.2, 4.0, false)] {
+                let mut m = spec(mode).instantiate(&mut rng).timed(along, t, outward);
+                m.set_time(t);
+                assert!((m.pose.x - along).abs() < 1e-3, "{mode:?} {along} at {t}: {}", m.pose.x);
+                // Only a back-and-forth path has a way back (a loop's start is its end).
+                let out = outward || mode != PathMode::BackAndForth;
+                assert_eq!(m.velocity.x > 0.0, out, "{mode:?} {along} at {t}");
+            }
+        }
+        let mut late = spec(PathMode::Once).instantiate(&mut rng).timed(1.0, 10.0, true);
+        assert_eq!(late.pose.x, 0.0, "5 m of travel before 1 m along: it starts at the start");
+        late.set_time(10.0);
+        assert!((late.pose.x - 4.0).abs() < 1e-5);
+        let mut on_time = spec(PathMode::Once).instantiate(&mut rng).timed(3.0, 4.0, true);
+        on_time.set_time(4.0);
+        assert!((on_time.pose.x - 3.0).abs() < 1e-5);
     }
 
     #[test]

@@ -366,6 +366,14 @@ pub struct MoverGenSpec {
     /// crosses it from wall to wall, as real traffic does, instead of out of a wall where no
     /// robot could see it coming. A mover with no free path of at least 0.5 m is left out.
     pub free_paths: bool,
+    /// Share of the movers whose path crosses the start–goal line that are timed to meet the
+    /// robot there (default 0: every mover starts at a random point of its path). A timed
+    /// mover is at the crossing when the robot would be, were it to drive the line at 60–100%
+    /// of its top speed after 0–2 s turning, coming from either end of its path: a cart that
+    /// the robot must yield to or pass in front of, where one at a random phase mostly passes
+    /// while the robot is elsewhere. Needs the robot's speed: draws without it
+    /// ([`Scenario::sample`]) keep the random phase.
+    pub intercept: f32,
 }
 
 impl Default for MoverGenSpec {
@@ -377,6 +385,7 @@ impl Default for MoverGenSpec {
             travel: [2.0, 4.0],
             patterns: vec![MotionPattern::Cross],
             free_paths: false,
+            intercept: 0.0,
         }
     }
 }
@@ -424,7 +433,7 @@ impl GeneratorSpec {
     /// bring every range's hard end towards its easy end: fewer obstacles, fewer of them on the
     /// start–goal line and in front of the goal, fewer partitions (and thinner, with wider
     /// doors), fewer dead ends, rarer and wider corridors, rarer forests, fewer and slower
-    /// movers and people.
+    /// movers and people, fewer of the movers timed to meet the robot.
     pub fn at_difficulty(&self, d: f32) -> Self {
         let d = d.clamp(0.0, 1.0);
         let mut g = self.clone();
@@ -459,6 +468,7 @@ impl GeneratorSpec {
         if let Some(m) = &mut g.movers {
             m.count = scale_count(m.count, d);
             m.speed = scale_up(m.speed, d);
+            m.intercept *= d;
         }
         if let Some(p) = &mut g.people {
             p.count = scale_count(p.count, d);
@@ -663,6 +673,7 @@ impl Validate for ScenarioSpec {
             check_interval("procedural.movers.size", m.size, 0.01, 10.0)?;
             check_interval("procedural.movers.travel", m.travel, 0.0, 1000.0)?;
             check_patterns("procedural.movers.patterns", &m.patterns)?;
+            check_range("procedural.movers.intercept", m.intercept, 0.0, 1.0)?;
         }
         Ok(())
     }
@@ -985,6 +996,12 @@ impl Scenario {
     /// Draws one episode: a world (generated if the scenario has a generator), and a start and
     /// goal in free space, the requested distance apart, connected for the robot.
     pub fn sample<R: rand::Rng>(&self, rng: &mut R) -> Result<EpisodeSetup, NoEpisode> {
+        self.sample_for(rng, None)
+    }
+
+    /// [`Self::sample`] for a robot whose top speed is `robot_speed` (m/s): movers timed to
+    /// meet it ([`MoverGenSpec::intercept`]) are timed for that speed.
+    pub fn sample_for<R: rand::Rng>(&self, rng: &mut R, robot_speed: Option<f32>) -> Result<EpisodeSetup, NoEpisode> {
         let mut reason = String::new();
         for _ in 0..WORLD_TRIES {
             // A generator that builds around the start–goal line draws start and goal first.
@@ -1029,7 +1046,7 @@ impl Scenario {
             };
             match placed {
                 Ok((start, goal)) => {
-                    let movers = self.draw_movers(&world, start.position(), goal, rng);
+                    let movers = self.draw_movers(&world, start.position(), goal, robot_speed, rng);
                     let people = self.draw_people(&world, start.position(), goal, rng);
                     let goal_velocity = match &self.spec.goal_motion {
                         Some(m) => {
@@ -1116,8 +1133,16 @@ impl Scenario {
         people
     }
 
-    /// The scenario's movers plus generated ones crossing the start–goal line.
-    fn draw_movers<R: rand::Rng>(&self, world: &World, start: Vec2, goal: Vec2, rng: &mut R) -> Vec<Mover> {
+    /// The scenario's movers plus generated ones crossing the start–goal line (or running
+    /// along it), a share of them timed to meet a robot of top speed `robot_speed`.
+    fn draw_movers<R: rand::Rng>(
+        &self,
+        world: &World,
+        start: Vec2,
+        goal: Vec2,
+        robot_speed: Option<f32>,
+        rng: &mut R,
+    ) -> Vec<Mover> {
         let mut movers: Vec<Mover> = self.spec.movers.iter().map(|m| m.instantiate(rng)).collect();
         if let Some(g) = self.spec.procedural.as_ref().and_then(|p| p.movers.as_ref()) {
             let line = goal - start;
@@ -1158,7 +1183,17 @@ impl Scenario {
                     mode: PathMode::BackAndForth,
                     random_phase: true,
                 };
-                movers.push(spec.instantiate(rng));
+                let mut mover = spec.instantiate(rng);
+                // (No draws without `intercept`: the scenarios written before it draw as they did.)
+                if let Some(v) = robot_speed.filter(|v| g.intercept > 0.0 && *v > 0.0) {
+                    if let Some((along, from_start)) = crossing(a, b, start, goal) {
+                        if rng.random_range(0.0..1.0f32) < g.intercept {
+                            let t = from_start / (v * rng.random_range(0.6..=1.0f32)) + rng.random_range(0.0..=2.0f32);
+                            mover = mover.timed(along, t, rng.random_range(0.0..1.0f32) < 0.5);
+                        }
+                    }
+                }
+                movers.push(mover);
             }
         }
         movers
@@ -1559,6 +1594,18 @@ impl Scenario {
         });
         (self.build_world(obstacles), map)
     }
+}
+
+/// Where segment `a`–`b` crosses segment `s`–`q`: the distance from `a` along the first and
+/// from `s` along the second; `None` when they do not cross or run parallel.
+fn crossing(a: Vec2, b: Vec2, s: Vec2, q: Vec2) -> Option<(f32, f32)> {
+    let (r, u) = (b - a, q - s);
+    let denom = r.perp_dot(u);
+    if denom.abs() < 1e-6 * r.length() * u.length() {
+        return None;
+    }
+    let (ta, tq) = ((s - a).perp_dot(u) / denom, (s - a).perp_dot(r) / denom);
+    ((0.0..=1.0).contains(&ta) && (0.0..=1.0).contains(&tq)).then(|| (ta * r.length(), tq * u.length()))
 }
 
 /// The posts of a patch ([`ForestGenSpec`]) across the line from `s` to `q`: centre and radius
@@ -2082,6 +2129,61 @@ mod tests {
         let bad = "name: t\narena: {size: [8, 8]}\nprocedural: {movers: {patterns: []}}\n";
         let err = crate::config::from_yaml_str::<ScenarioSpec>("t.yaml", bad).unwrap_err().to_string();
         assert!(err.contains("t.yaml") && err.contains("procedural.movers.patterns"), "{err}");
+    }
+
+    /// With `intercept: 1`, every generated mover that crosses the start–goal line is on it
+    /// when a robot of the given top speed would be there (60–100% of that speed, after 0–2 s
+    /// turning); without the robot's speed (a random phase) far fewer are.
+    #[test]
+    fn intercepting_movers_meet_the_robot_on_the_line() {
+        let yaml = "name: t\narena: {size: [8, 8]}\nprocedural:\n  count: [0, 3]\n  \
+                    movers: {count: [1, 2], speed: [0.1, 0.6], travel: [3, 8], patterns: [cross, head_on], \
+                    free_paths: true, intercept: 1.0}\nstart_goal_distance: [3, 7]\n";
+        let spec: ScenarioSpec = crate::config::from_yaml_str("t.yaml", yaml).unwrap();
+        let s = Scenario::new(spec, 0.2, 0.0).unwrap();
+        let v = 0.5;
+        // Of the movers that cross the line, how many are on it within the robot's window.
+        let on_time = |robot_speed: Option<f32>, seed: u64| {
+            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+            let (mut crossing, mut met) = (0, 0);
+            for _ in 0..100 {
+                let e = s.sample_for(&mut rng, robot_speed).unwrap();
+                let (a, line) = (e.start.position(), e.goal - e.start.position());
+                for m in &e.movers {
+                    let side = |t: f32| {
+                        let p = m.clone().at_time(t).pose.position();
+                        (line.perp_dot(p - a), line.dot(p - a) / line.length())
+                    };
+                    // Times it crosses the line between start and goal, over 200 s.
+                    let dt = 0.02;
+                    let times: Vec<(f32, f32)> = (0..10_000)
+                        .filter_map(|i| {
+                            let (t0, t1) = (i as f32 * dt, (i + 1) as f32 * dt);
+                            let ((c0, _), (c1, along)) = (side(t0), side(t1));
+                            (c0.signum() != c1.signum() && (0.0..=line.length()).contains(&along))
+                                .then_some((t1, along))
+                        })
+                        .collect();
+                    if times.is_empty() {
+                        continue;
+                    }
+                    crossing += 1;
+                    let window = |d: f32| (d / v - dt, d / (0.6 * v) + 2.0 + dt);
+                    met += times.iter().any(|&(t, d)| (window(d).0..=window(d).1).contains(&t)) as usize;
+                }
+            }
+            (crossing, met)
+        };
+        let (crossing, met) = on_time(Some(v), 5);
+        assert!(crossing >= 40, "{crossing} crossing movers in 100 scenes");
+        assert_eq!(met, crossing, "every crossing mover meets the robot");
+        // Random phases: 36-53% of the crossing movers on the line within the window, measured
+        // over seeds 1-8 (timed: 100% on each).
+        let (crossing, met) = on_time(None, 5);
+        assert!((met as f32) < 0.7 * crossing as f32, "{met} of {crossing} without the robot's speed");
+        let bad = "name: t\narena: {size: [8, 8]}\nprocedural: {movers: {intercept: 1.5}}\n";
+        let err = crate::config::from_yaml_str::<ScenarioSpec>("t.yaml", bad).unwrap_err().to_string();
+        assert!(err.contains("procedural.movers.intercept"), "{err}");
     }
 
     /// With `free_paths`, generated movers in rooms with partitions and corridors never pass

@@ -770,8 +770,10 @@ impl NavEnv {
             Some(l) => &setup.levels[l],
             None => &setup.scenario,
         };
+        // Movers timed to meet the robot are timed for its nominal top speed.
+        let speed = Some(self.setup.robot.max_linear);
         // A moving obstacle may start on top of the robot; draw again (rarely needed).
-        let mut ep = scenario.sample(&mut self.rng)?;
+        let mut ep = scenario.sample_for(&mut self.rng, speed)?;
         let room = self.setup.scenario.start_clearance();
         for _ in 0..20 {
             let p = ep.start.position();
@@ -780,7 +782,7 @@ impl NavEnv {
             {
                 break;
             }
-            ep = scenario.sample(&mut self.rng)?;
+            ep = scenario.sample_for(&mut self.rng, speed)?;
         }
         self.movers = ep.movers;
         self.crowd = Crowd::new(ep.people, &ep.world);
