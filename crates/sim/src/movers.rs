@@ -157,7 +157,7 @@ impl Mover {
     /// The mover with its phase set so that `t` seconds into the episode it is `along` metres
     /// along its path from the first waypoint, on its way out (`outward`) or, for a
     /// back-and-forth path, on its way back; a `once` path that cannot be there at `t` (it would
-    /// have to start before its first waypoint) starts there instead.
+    /// have to start before its first waypoint) starts at its first waypoint instead.
     pub fn timed(mut self, along: f32, t: f32, outward: bool) -> Self {
         let along = along.clamp(0.0, self.length);
         self.phase = match self.mode {
