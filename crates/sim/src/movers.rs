@@ -299,7 +299,8 @@ mod tests {
     }
 
     /// A timed mover is where it was asked to be at that time, going the way asked, on every
-    /// kind of path; a `once` crossing that would have to start before its start starts there.
+    /// kind of path; a `once` crossing that would have to start before its first waypoint
+    /// starts at it.
     #[test]
     fn timed_movers_are_there_on_time() {
         let spec = |mode| MoverSpec {
