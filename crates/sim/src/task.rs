@@ -655,6 +655,16 @@ impl EnvSetup {
     }
 }
 
+/// Values per mover in [`NavEnv::write_privileged`]: `x, y, vx, vy, r`.
+pub const PRIVILEGED_PER_MOVER: usize = 5;
+/// Where [`NavEnv::write_privileged`] puts a mover that is not there (m ahead).
+pub const PRIVILEGED_FAR: f32 = 10.0;
+
+/// Length of [`NavEnv::write_privileged`]'s state for `movers` movers.
+pub fn privileged_len(movers: usize) -> usize {
+    PRIVILEGED_PER_MOVER * movers + 2
+}
+
 /// One robot navigating one episode after another.
 #[derive(Debug)]
 pub struct NavEnv {
@@ -697,6 +707,10 @@ pub struct NavEnv {
     start: Vec2,
     first_goal: Vec2,
     angular_acceleration_sum: f32,
+    /// Movers in the privileged state kept at an episode's end (0: none).
+    privileged_movers: usize,
+    /// The privileged state when the last episode ended (see [`NavEnv::keep_final_privileged`]).
+    final_privileged: Vec<f32>,
     /// The global plan being followed (empty: none) and the path length from each corner
     /// to its end.
     plan: Arc<[Vec2]>,
@@ -749,6 +763,8 @@ impl NavEnv {
             start: Vec2::ZERO,
             first_goal: Vec2::ZERO,
             angular_acceleration_sum: 0.0,
+            privileged_movers: 0,
+            final_privileged: Vec::new(),
             plan: Arc::from(Vec::new()),
             plan_suffix: Vec::new(),
             plan_progress: 0,
@@ -1133,6 +1149,63 @@ impl NavEnv {
         }
     }
 
+    /// Writes the privileged state a training critic may read beside the observation (an
+    /// asymmetric actor-critic: the deployed actor never sees it) into `out`, of
+    /// [`privileged_len`]`(movers)` values: for the `movers` nearest moving obstacles and
+    /// people (by gap to their bounding circle), their centre and their velocity relative to
+    /// the robot's, both in the robot frame, and their bounding radius (`x, y, vx, vy, r`);
+    /// then the robot's top speed this episode and its footprint radius. Missing movers read
+    /// as [`PRIVILEGED_FAR`] m ahead, standing, of radius 0.
+    ///
+    /// Why: whether a crossing cart will be in the robot's way is hard to read from a few
+    /// scans, so a critic that sees only the scans values such states poorly; the mover's
+    /// velocity makes it plain.
+    pub fn write_privileged(&self, movers: usize, out: &mut [f32]) {
+        assert_eq!(out.len(), privileged_len(movers), "privileged state of {movers} movers");
+        let pose = &self.drive.pose;
+        let (s, c) = pose.yaw.sin_cos();
+        let own = Vec2::new(c, s) * self.drive.velocity.linear;
+        let local = |v: Vec2| Vec2::new(c * v.x + s * v.y, -s * v.x + c * v.y);
+        let here = pose.position();
+        let mut things: Vec<(f32, Vec2, Vec2, f32)> = self
+            .movers
+            .iter()
+            .map(|m| (m.pose.position(), m.velocity, m.shape.bound_radius()))
+            .chain(self.crowd.people.iter().map(|p| (p.position, p.velocity, p.radius)))
+            .map(|(p, v, r)| ((p - here).length() - r, pose.to_local(p), local(v - own), r))
+            .collect();
+        things.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (k, slot) in out[..PRIVILEGED_PER_MOVER * movers].chunks_exact_mut(PRIVILEGED_PER_MOVER).enumerate() {
+            match things.get(k) {
+                Some(&(_, p, v, r)) => slot.copy_from_slice(&[p.x, p.y, v.x, v.y, r]),
+                None => slot.copy_from_slice(&[PRIVILEGED_FAR, 0.0, 0.0, 0.0, 0.0]),
+            }
+        }
+        let n = out.len();
+        out[n - 2] = self.drive.params.linear[1];
+        out[n - 1] = self.setup.footprint.radius();
+    }
+
+    /// Keeps the privileged state of `movers` movers at every episode's end (0: none).
+    pub fn set_privileged_movers(&mut self, movers: usize) {
+        self.privileged_movers = movers;
+        self.final_privileged = vec![0.0; if movers > 0 { privileged_len(movers) } else { 0 }];
+    }
+
+    /// Stores the privileged state now, the episode's last (before [`NavEnv::reset`]).
+    pub fn keep_final_privileged(&mut self) {
+        if self.privileged_movers > 0 {
+            let mut out = std::mem::take(&mut self.final_privileged);
+            self.write_privileged(self.privileged_movers, &mut out);
+            self.final_privileged = out;
+        }
+    }
+
+    /// The privileged state stored by [`NavEnv::keep_final_privileged`].
+    pub fn final_privileged(&self) -> &[f32] {
+        &self.final_privileged
+    }
+
     /// The statistics of the episode that ended last (`None` before the first ends).
     pub fn last_episode(&self) -> Option<EpisodeStats> {
         self.last_episode
@@ -1239,6 +1312,38 @@ mod tests {
 
     fn setup(name: &str) -> Arc<EnvSetup> {
         Arc::new(EnvSetup::from_scenario_name(name).unwrap())
+    }
+
+    #[test]
+    fn privileged_state_shows_the_nearest_movers_in_the_robot_frame() {
+        let mut env = NavEnv::new(setup("heldout-dynamic-fast-crossing"), 3).unwrap();
+        for _ in 0..20 {
+            env.step([1.0, 0.3]);
+        }
+        let k = 3;
+        let mut out = vec![f32::NAN; privileged_len(k)];
+        env.write_privileged(k, &mut out);
+        let pose = env.pose();
+        let own = Vec2::new(pose.yaw.cos(), pose.yaw.sin()) * env.drive.velocity.linear;
+        assert!(own.length() > 0.05, "the robot moves: {own:?}");
+        // The scene's two movers, nearest first; the third slot is empty.
+        let mut movers: Vec<&Mover> = env.movers().iter().collect();
+        assert_eq!(movers.len(), 2);
+        let gap = |m: &Mover| (m.pose.position() - pose.position()).length() - m.shape.bound_radius();
+        movers.sort_by(|a, b| gap(a).total_cmp(&gap(b)));
+        for (slot, m) in out.chunks_exact(PRIVILEGED_PER_MOVER).zip(&movers) {
+            let p = pose.to_local(m.pose.position());
+            // The relative velocity, rotated into the robot frame: to_local of a free vector.
+            let v = pose.to_local(pose.position() + (m.velocity - own));
+            let want = [p.x, p.y, v.x, v.y, m.shape.bound_radius()];
+            for (got, want) in slot.iter().zip(want) {
+                assert!((got - want).abs() < 1e-4, "{slot:?} against {want:?}");
+            }
+        }
+        assert_eq!(&out[10..15], &[PRIVILEGED_FAR, 0.0, 0.0, 0.0, 0.0], "no third mover");
+        let params = env.drive_params();
+        assert_eq!(out[15], params.linear[1], "the robot's top speed this episode");
+        assert_eq!(out[16], env.setup().footprint.radius());
     }
 
     #[test]

@@ -6,7 +6,7 @@
 //! procedurally generated world at reset does, and planning a path at reset for a task with a
 //! `plan`).
 
-use crate::task::{EnvSetup, EpisodeStats, NavEnv, SimError};
+use crate::task::{EnvSetup, EpisodeStats, NavEnv, SimError, privileged_len};
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -39,6 +39,13 @@ pub struct VecEnv {
     pub final_obs: Vec<f32>,
     /// Statistics of the episodes that finished in the last step, per environment.
     pub finished: Vec<Option<EpisodeStats>>,
+    /// Privileged state per environment (`[env][privileged_len]`, empty unless
+    /// [`VecEnv::set_privileged`] asked for it): what a training critic reads beside `obs`.
+    pub privileged: Vec<f32>,
+    /// The privileged state at the end of an episode, where `terminated` or `truncated`.
+    pub final_privileged: Vec<f32>,
+    /// Movers in the privileged state (0: none kept).
+    privileged_movers: usize,
     /// One `true` per environment: [`Self::step`]'s flags, kept so that a step allocates nothing.
     all_active: Vec<bool>,
 }
@@ -89,6 +96,9 @@ impl VecEnv {
             truncated: vec![false; n],
             final_obs: vec![0.0; n * d],
             finished: vec![None; n],
+            privileged: Vec::new(),
+            final_privileged: Vec::new(),
+            privileged_movers: 0,
             all_active: vec![true; n],
         };
         for (env, o) in v.envs.iter_mut().zip(v.obs.chunks_mut(d)) {
@@ -145,9 +155,11 @@ impl VecEnv {
             envs.par_iter_mut().zip(obs.par_chunks_mut(d)).try_for_each(|(env, o)| {
                 env.reset()?;
                 env.write_observation(o);
-                Ok(())
+                Ok::<(), SimError>(())
             })
-        })
+        })?;
+        self.write_privileged(false);
+        Ok(())
     }
 
     /// Mean difficulty of the environments' levels in [0, 1] (`None` without levels).
@@ -206,15 +218,52 @@ impl VecEnv {
                             if let Some(e) = &fin[i] {
                                 env.advance_level(e.outcome == crate::task::Outcome::Success);
                             }
+                            env.keep_final_privileged();
                             env.reset()?;
                         } else {
                             fin[i] = None;
                         }
                         env.write_observation(o);
                     }
-                    Ok(())
+                    Ok::<(), SimError>(())
                 })
-        })
+        })?;
+        self.write_privileged(true);
+        Ok(())
+    }
+
+    /// Keeps the privileged state of `movers` movers per environment from now on
+    /// (`privileged` and `final_privileged`, [`crate::task::privileged_len`] values each; 0
+    /// keeps none).
+    pub fn set_privileged(&mut self, movers: usize) {
+        self.privileged_movers = movers;
+        let p = if movers > 0 { privileged_len(movers) } else { 0 };
+        self.privileged = vec![0.0; self.envs.len() * p];
+        self.final_privileged = vec![0.0; self.envs.len() * p];
+        for env in &mut self.envs {
+            env.set_privileged_movers(movers);
+        }
+        self.write_privileged(false);
+    }
+
+    /// Length of one environment's privileged state (0 when none is kept).
+    pub fn privileged_dim(&self) -> usize {
+        if self.privileged_movers > 0 { privileged_len(self.privileged_movers) } else { 0 }
+    }
+
+    /// Writes the current privileged state and, with `finals`, the final one of the
+    /// environments whose episode just ended.
+    fn write_privileged(&mut self, finals: bool) {
+        let (k, p) = (self.privileged_movers, self.privileged_dim());
+        if k == 0 {
+            return;
+        }
+        for (i, env) in self.envs.iter().enumerate() {
+            env.write_privileged(k, &mut self.privileged[i * p..(i + 1) * p]);
+            if finals && (self.terminated[i] || self.truncated[i]) {
+                self.final_privileged[i * p..(i + 1) * p].copy_from_slice(env.final_privileged());
+            }
+        }
     }
 }
 

@@ -256,3 +256,48 @@ fn environments_left_out_of_a_step_stand_still_and_the_rest_are_unaffected() {
     assert!(ends > 0, "episodes ended in 200 steps");
     assert_ne!(some.obs[4 * d..5 * d], frozen[..], "it moves once it is back in");
 }
+
+#[test]
+fn privileged_state_is_kept_now_and_at_each_episode_end() {
+    use rlnav_sim::task::{PRIVILEGED_PER_MOVER, privileged_len};
+    let setup = Arc::new(EnvSetup::from_scenario_name("heldout-dynamic-fast-crossing").unwrap());
+    let mut env = VecEnv::new(setup, 8, 3, 2).unwrap();
+    assert_eq!(env.privileged_dim(), 0, "none kept unless asked");
+    env.step(&[[1.0, 0.0]; 8]).unwrap();
+    assert!(env.privileged.is_empty() && env.final_privileged.is_empty());
+    let k = 2;
+    env.set_privileged(k);
+    let p = privileged_len(k);
+    assert_eq!(env.privileged_dim(), p);
+    let mut row = vec![0.0; p];
+    let (mut ends, mut hit_by_mover) = (0, 0);
+    for _ in 0..300 {
+        // Towards the goal at full speed, blind: the crossing box meets some robots.
+        let actions: Vec<[f32; 2]> = env
+            .envs()
+            .iter()
+            .map(|e| {
+                let (_, bearing) = e.pose().polar_of(e.goal());
+                [1.0, (2.0 * bearing).clamp(-1.0, 1.0)]
+            })
+            .collect();
+        env.step(&actions).unwrap();
+        for (i, e) in env.envs().iter().enumerate() {
+            e.write_privileged(k, &mut row);
+            assert_eq!(&env.privileged[i * p..(i + 1) * p], row.as_slice(), "env {i}: the current state");
+            if !(env.terminated[i] || env.truncated[i]) {
+                continue;
+            }
+            ends += 1;
+            let last = &env.final_privileged[i * p..(i + 1) * p];
+            assert_ne!(last, row.as_slice(), "env {i}: the episode's last state, not the new episode's first");
+            let gap = (last[0].hypot(last[1]) - last[4]).max(0.0);
+            if env.finished[i].is_some_and(|s| s.outcome == Outcome::Collision) && gap < 0.6 {
+                hit_by_mover += 1;
+            }
+            assert!(last[..PRIVILEGED_PER_MOVER * k].iter().all(|v| v.is_finite()));
+        }
+    }
+    assert!(ends >= 4, "episodes ended: {ends}");
+    assert!(hit_by_mover >= 1, "a blind robot is hit by the box, its final state shows it near");
+}
