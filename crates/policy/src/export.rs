@@ -301,8 +301,11 @@ pub fn export_model(
     }
     let a = g.trunk(&features, &net.actor, net.activation, "actor");
     g.gemm(&a, &net.mu, "mu", Some("mu"));
-    let c = if net.critic.is_empty() { a } else { g.trunk(&features, &net.critic, net.activation, "critic") };
-    g.gemm(&c, &net.value, "value", Some("value"));
+    // A privileged critic reads what no robot measures: the file has no value output then.
+    if net.critic_extra == 0 {
+        let c = if net.critic.is_empty() { a } else { g.trunk(&features, &net.critic, net.activation, "critic") };
+        g.gemm(&c, &net.value, "value", Some("value"));
+    }
     // log_std per row, as rl_games writes it: mu * 0 + sigma.
     let zero = g.tensor("zero", &[], vec![0.0]);
     let sigma = g.tensor("sigma", &[act], floats(net.log_std.val()));
@@ -310,7 +313,9 @@ pub fn export_model(
     g.node("Add", &[&z, &sigma], &["log_std"], Vec::new());
     outputs.push(value_info("mu", &[None, Some(act)]));
     outputs.push(value_info("log_std", &[None, Some(act)]));
-    outputs.push(value_info("value", &[None, Some(1)]));
+    if net.critic_extra == 0 {
+        outputs.push(value_info("value", &[None, Some(1)]));
+    }
     if let Some(l) = &net.lstm {
         for name in ["out_state", "hidden_state"] {
             outputs.push(value_info(name, &[Some(1), None, Some(l.d_hidden)]));

@@ -47,6 +47,13 @@ pub struct NetworkConfig {
     pub lstm_units: usize,
     /// Initial log standard deviation of the Gaussian policy (default 0, σ = 1).
     pub init_log_std: f32,
+    /// Moving obstacles and people whose privileged state the critic reads beside the
+    /// observation in training (`rlnav_sim::task::NavEnv::write_privileged`: each one's
+    /// position and velocity relative to the robot, in its frame, and its radius; then the
+    /// robot's top speed and radius). An asymmetric actor-critic: the actor, the only part
+    /// a robot runs, still sees the observation alone. Default 0: the critic sees what the
+    /// actor sees. Needs `separate_critic` and a feed-forward policy.
+    pub critic_movers: usize,
 }
 
 impl Default for NetworkConfig {
@@ -57,6 +64,7 @@ impl Default for NetworkConfig {
             separate_critic: true,
             lstm_units: 0,
             init_log_std: 0.0,
+            critic_movers: 0,
         }
     }
 }
@@ -76,12 +84,27 @@ impl NetworkConfig {
         if !(-5.0..=2.0).contains(&self.init_log_std) {
             return Err(("init_log_std".into(), "a number in [-5, 2]".into()));
         }
+        if self.critic_movers > 64 {
+            return Err(("critic_movers".into(), "0 (no privileged critic) to 64".into()));
+        }
+        if self.critic_movers > 0 && (!self.separate_critic || self.is_recurrent()) {
+            return Err((
+                "critic_movers".into(),
+                "0 unless the critic has its own MLP (separate_critic: true) and the policy is feed-forward (lstm_units: 0)"
+                    .into(),
+            ));
+        }
         Ok(())
     }
 
     /// Whether the policy is recurrent.
     pub fn is_recurrent(&self) -> bool {
         self.lstm_units > 0
+    }
+
+    /// Privileged values the critic reads beside the observation (0 without `critic_movers`).
+    pub fn critic_privileged_len(&self) -> usize {
+        if self.critic_movers > 0 { rlnav_sim::task::privileged_len(self.critic_movers) } else { 0 }
     }
 }
 
@@ -120,6 +143,10 @@ pub struct ActorCritic {
     /// Observation length.
     #[module(skip)]
     pub obs_dim: usize,
+    /// Privileged values the critic reads after the observation (0: none; see
+    /// [`NetworkConfig::critic_movers`]).
+    #[module(skip)]
+    pub critic_extra: usize,
 }
 
 fn mlp(sizes: &[usize], device: &Device) -> Vec<Linear> {
@@ -139,6 +166,9 @@ impl ActorCritic {
         // "last policy layer scaled by 0.01" of PPO practice). Set through the initialiser:
         // scaling the initialised weights would record an operation on the autodiff tape.
         let bound = 0.01 / (last as f64).sqrt();
+        let critic_extra = cfg.critic_privileged_len();
+        let mut critic_sizes = sizes.clone();
+        critic_sizes[0] += critic_extra;
         let mu = LinearConfig::new(last, action_dim)
             .with_initializer(Initializer::Uniform { min: -bound, max: bound })
             .init(device);
@@ -146,11 +176,12 @@ impl ActorCritic {
             lstm,
             actor: mlp(&sizes, device),
             mu,
-            critic: if cfg.separate_critic { mlp(&sizes, device) } else { Vec::new() },
+            critic: if cfg.separate_critic { mlp(&critic_sizes, device) } else { Vec::new() },
             value: LinearConfig::new(last, 1).init(device),
             log_std: Param::from_tensor(Tensor::full([action_dim], cfg.init_log_std, device)),
             activation: cfg.activation,
             obs_dim,
+            critic_extra,
         }
     }
 
@@ -183,11 +214,28 @@ impl ActorCritic {
     }
 
     /// Gaussian mean `[batch, actions]` and value `[batch]` from features `[batch, features]`
-    /// (the observation, or the LSTM's output).
+    /// (the observation, or the LSTM's output). A privileged critic reads zeros in place of
+    /// its privileged values here: see [`Self::heads_privileged`].
     pub fn heads(&self, features: Tensor<2>) -> (Tensor<2>, Tensor<1>) {
+        let privileged = (self.critic_extra > 0)
+            .then(|| Tensor::zeros([features.dims()[0], self.critic_extra], &features.device()));
+        self.heads_privileged(features, privileged)
+    }
+
+    /// [`Self::heads`] with the critic's privileged values `[batch, critic_extra]` (needed
+    /// exactly when `critic_extra > 0`).
+    pub fn heads_privileged(&self, features: Tensor<2>, privileged: Option<Tensor<2>>) -> (Tensor<2>, Tensor<1>) {
         let a = self.trunk(&self.actor, features.clone());
         let mu = self.mu.forward(a.clone());
-        let c = if self.critic.is_empty() { a } else { self.trunk(&self.critic, features) };
+        let c = if self.critic.is_empty() {
+            a
+        } else {
+            let input = match privileged {
+                Some(p) => Tensor::cat(vec![features, p], 1),
+                None => features,
+            };
+            self.trunk(&self.critic, input)
+        };
         let value = self.value.forward(c).squeeze_dim(1);
         (mu, value)
     }

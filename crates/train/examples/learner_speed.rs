@@ -59,6 +59,7 @@ fn main() {
         returns: &returns,
         old_values: &old_values,
         teacher: &[],
+        privileged: &[],
     };
     let loss = LossConfig {
         e_clip: 0.2,

@@ -476,6 +476,12 @@ impl Validate for RunConfig {
             }
         }
         // The scan and the action range are checked per robot and stage when training starts.
+        if t.mirror && self.network.critic_movers > 0 {
+            return Err(Invalid::new(
+                "train.mirror",
+                "false with a privileged critic (network.critic_movers): its values are not mirrored",
+            ));
+        }
         if t.mirror && self.network.is_recurrent() {
             return Err(Invalid::new("train.mirror", "false for a recurrent network (its state cannot be mirrored)"));
         }

@@ -214,6 +214,9 @@ pub struct Batch<'a> {
     /// A teacher's actions `[rows][act]` to imitate (kickstarting), NaN on rows it did not
     /// label; empty: none.
     pub teacher: &'a [f32],
+    /// The critic's privileged values `[rows][critic_extra]` (normalised); empty without a
+    /// privileged critic.
+    pub privileged: &'a [f32],
 }
 
 /// PPO loss settings (from `PpoConfig`).
@@ -263,6 +266,8 @@ pub struct FastNet {
     activation: ActivationKind,
     obs_dim: usize,
     act_dim: usize,
+    /// Privileged values the critic reads after the observation (0: none).
+    critic_extra: usize,
     /// The recurrent layer in front of the trunks (LSTM policies).
     lstm: Option<LstmLayer>,
     actor: Vec<Dense>,
@@ -353,6 +358,7 @@ impl FastNet {
             activation: model.activation,
             obs_dim: model.obs_dim,
             act_dim: mu.out,
+            critic_extra: model.critic_extra,
             lstm,
             actor,
             mu,
@@ -470,11 +476,33 @@ impl FastNet {
         hs
     }
 
-    /// Means `[rows][act]`, values, and the trunks' activations (actor, critic).
-    fn forward_rows(&self, x: &[f32], rows: usize) -> (Vec<f32>, Vec<f32>, Activations, Activations) {
+    /// Means `[rows][act]`, values, and the trunks' activations (actor, critic), from features
+    /// `x` `[rows][features]` and a privileged critic's values `[rows][critic_extra]` (zeros
+    /// when empty).
+    fn forward_rows(
+        &self,
+        x: &[f32],
+        privileged: &[f32],
+        rows: usize,
+    ) -> (Vec<f32>, Vec<f32>, Activations, Activations) {
         let a = self.trunk(&self.actor, x, rows);
         let mu = self.dense(self.mu, a.last().expect("actor output"), rows);
-        let c = if self.critic.is_empty() { Vec::new() } else { self.trunk(&self.critic, x, rows) };
+        let c = if self.critic.is_empty() {
+            Vec::new()
+        } else if self.critic_extra > 0 {
+            let (f, p) = (x.len() / rows.max(1), self.critic_extra);
+            let mut xc = Vec::with_capacity(rows * (f + p));
+            for r in 0..rows {
+                xc.extend_from_slice(&x[r * f..(r + 1) * f]);
+                match privileged.get(r * p..(r + 1) * p) {
+                    Some(v) => xc.extend_from_slice(v),
+                    None => xc.extend(std::iter::repeat_n(0.0, p)),
+                }
+            }
+            self.trunk(&self.critic, &xc, rows)
+        } else {
+            self.trunk(&self.critic, x, rows)
+        };
         let feat = if self.critic.is_empty() { a.last() } else { c.last() };
         let v = self.dense(self.value, feat.expect("critic output"), rows);
         (mu, v, a, c)
@@ -491,14 +519,25 @@ impl FastNet {
     /// network, the next state, from observations `[rows][obs]` and the state (cell, hidden),
     /// `[rows][units]` each (zeros when `None`). A feed-forward network passes `state` through.
     pub fn infer(&self, obs: &[f32], state: Option<RecurrentState>) -> (Vec<f32>, Vec<f32>, Option<RecurrentState>) {
+        self.infer_privileged(obs, &[], state)
+    }
+
+    /// [`Self::infer`] with a privileged critic's values `[rows][critic_extra]` (the values
+    /// are the critic's on zeros when `privileged` is empty).
+    pub fn infer_privileged(
+        &self,
+        obs: &[f32],
+        privileged: &[f32],
+        state: Option<RecurrentState>,
+    ) -> (Vec<f32>, Vec<f32>, Option<RecurrentState>) {
         let rows = obs.len() / self.obs_dim;
         let Some(l) = self.lstm else {
-            let (mu, v, _) = self.infer_rows(obs, rows, None);
+            let (mu, v, _) = self.infer_rows(obs, privileged, rows, None);
             return (mu, v, state);
         };
         let state = state.unwrap_or_else(|| (vec![0.0; rows * l.units], vec![0.0; rows * l.units]));
         assert_eq!(state.0.len(), rows * l.units, "one recurrent state per row");
-        let (mu, v, next) = self.infer_rows(obs, rows, Some(&state));
+        let (mu, v, next) = self.infer_rows(obs, &[], rows, Some(&state));
         (mu, v, Some(next))
     }
 
@@ -507,6 +546,7 @@ impl FastNet {
     fn infer_rows(
         &self,
         obs: &[f32],
+        privileged: &[f32],
         rows: usize,
         state: Option<&RecurrentState>,
     ) -> (Vec<f32>, Vec<f32>, RecurrentState) {
@@ -525,11 +565,13 @@ impl FastNet {
                             let ones = vec![1.0; hi - lo];
                             let (c0, h0) = (&cell[lo * units..hi * units], &hidden[lo * units..hi * units]);
                             let pass = self.lstm_forward(l, x, hi - lo, 1, &ones, c0, h0);
-                            let (mu, v, _, _) = self.forward_rows(&pass.out, hi - lo);
+                            let (mu, v, _, _) = self.forward_rows(&pass.out, &[], hi - lo);
                             (mu, v, pass.last_cell, pass.out)
                         }
                         _ => {
-                            let (mu, v, _, _) = self.forward_rows(x, hi - lo);
+                            let p = self.critic_extra;
+                            let priv_rows = privileged.get(lo * p..hi * p).unwrap_or(&[]);
+                            let (mu, v, _, _) = self.forward_rows(x, priv_rows, hi - lo);
                             (mu, v, Vec::new(), Vec::new())
                         }
                     }
@@ -774,7 +816,10 @@ impl FastNet {
                         (l, mask, pass)
                     });
                     let features = lstm.as_ref().map_or(x, |(_, _, pass)| pass.out.as_slice());
-                    let (mu, v, ha, hc) = self.forward_rows(features, r);
+                    // Privileged critics are feed-forward (seq 1): rows lo..hi are the chunk's.
+                    let p = self.critic_extra;
+                    let privileged = batch.privileged.get(lo * p..hi * p).unwrap_or(&[]);
+                    let (mu, v, ha, hc) = self.forward_rows(features, privileged, r);
                     let mut dmu = vec![0.0f32; r * act];
                     let mut dv = vec![0.0f32; r];
                     let mut grad = vec![0.0f32; self.params.len()];
@@ -1013,6 +1058,7 @@ mod tests {
                 returns: &self.returns,
                 old_values: &self.old_values,
                 teacher,
+                privileged: &[],
             }
         }
 
@@ -1076,18 +1122,24 @@ mod tests {
     /// The hand-written loss, gradient and Adam step agree with burn's autodiff and Adam on
     /// random networks and minibatches, for each activation, shared and separate critics,
     /// clipped and unclipped value losses, ratios on both sides of the clip range, and actions
-    /// scored as densities or, clipped to ±1, as tail masses (a third of them beyond a bound).
+    /// scored as densities or, clipped to ±1, as tail masses (a third of them beyond a bound),
+    /// and a critic that reads privileged values beside the observation.
     #[test]
     fn gradients_and_adam_match_burn() {
         let device = Device::flex().autodiff();
         let cases = [
-            (ActivationKind::Elu, true, true, false),
-            (ActivationKind::Relu, true, false, true),
-            (ActivationKind::Tanh, false, true, false),
-            (ActivationKind::Elu, false, false, true),
+            (ActivationKind::Elu, true, true, false, 0),
+            (ActivationKind::Relu, true, false, true, 0),
+            (ActivationKind::Tanh, false, true, false, 0),
+            (ActivationKind::Elu, false, false, true, 0),
+            (ActivationKind::Elu, true, true, true, 2),
         ];
-        for (case, (activation, separate_critic, clip_value, clipped_actions)) in cases.into_iter().enumerate() {
-            let cfg = NetworkConfig { hidden: vec![24, 16], activation, separate_critic, ..Default::default() };
+        for (case, (activation, separate_critic, clip_value, clipped_actions, critic_movers)) in
+            cases.into_iter().enumerate()
+        {
+            let cfg =
+                NetworkConfig { hidden: vec![24, 16], activation, separate_critic, critic_movers, ..Default::default() };
+            let extra = cfg.critic_privileged_len();
             let (obs_dim, act_dim, rows) = (11, 2, 700); // rows span three chunks, the last partial
             let model = ActorCritic::seeded(&cfg, obs_dim, act_dim, &device, case as u64);
             let mut rng = Pcg64Mcg::seed_from_u64(case as u64 + 10);
@@ -1112,10 +1164,24 @@ mod tests {
                 teacher_coef: 0.8,
                 clipped_actions,
             };
-            let (report, grad) = fast.loss_and_grad(&targets.batch(&obs, &teacher), &loss_cfg);
+            let privileged = random(&mut rng, rows * extra, 1.0);
+            let batch = Batch { privileged: &privileged, ..targets.batch(&obs, &teacher) };
+            let (report, grad) = fast.loss_and_grad(&batch, &loss_cfg);
+            if extra > 0 {
+                let (mu_with, with, _) = fast.infer_privileged(&obs, &privileged, None);
+                let (mu_without, without) = fast.forward(&obs);
+                assert_eq!(mu_with, mu_without, "the actor does not read the privileged values");
+                assert!(with.iter().zip(&without).all(|(a, b)| a != b), "the critic does");
+            }
 
             let x = Tensor::<2>::from_data(TensorData::new(obs.clone(), [rows, obs_dim]), &device);
-            let l = targets.burn_loss(&model, model.forward(x), &teacher, &loss_cfg);
+            let heads = if extra > 0 {
+                let p = Tensor::<2>::from_data(TensorData::new(privileged.clone(), [rows, extra]), &device);
+                model.heads_privileged(x, Some(p))
+            } else {
+                model.forward(x)
+            };
+            let l = targets.burn_loss(&model, heads, &teacher, &loss_cfg);
             let close = |a: f32, b: f32, what: &str| {
                 assert!((a - b).abs() <= 1e-4 * (1.0 + a.abs().max(b.abs())), "case {case}: {what}: fast {a}, burn {b}")
             };

@@ -105,6 +105,10 @@ pub struct Ppo {
     pub obs_norm: RunningMeanStd,
     /// Running return statistics (value normalisation).
     pub value_norm: RunningMeanStd,
+    /// Running statistics of a privileged critic's values (`network.critic_movers`).
+    pub privileged_norm: RunningMeanStd,
+    /// Privileged values per sample (0: the critic sees the observation only).
+    privileged_dim: usize,
     lr: f32,
     rng: Pcg64Mcg,
     buffer: RolloutBuffer,
@@ -279,7 +283,10 @@ impl Ppo {
             model.log_std = cap_log_std(model.log_std, start);
         }
         let units = model.lstm_units();
+        let privileged_dim = model.critic_extra;
         let fast = cfg.uses_fast_learner().then(|| FastNet::from_model(&model, cfg.threads));
+        let mut buffer = RolloutBuffer::new(cfg.num_actors, cfg.horizon_length, obs_dim, act_dim, units, cfg.seq_len);
+        buffer.privileged = vec![0.0; cfg.num_actors * cfg.horizon_length * privileged_dim];
         Self {
             sim_s: 0.0,
             cfg: cfg.clone(),
@@ -289,9 +296,11 @@ impl Ppo {
             plain,
             obs_norm: RunningMeanStd::new(obs_dim),
             value_norm: RunningMeanStd::new(1),
+            privileged_norm: RunningMeanStd::new(privileged_dim),
+            privileged_dim,
             lr: cfg.learning_rate,
             rng: Pcg64Mcg::seed_from_u64(seed ^ 0x9e37_79b9_7f4a_7c15),
-            buffer: RolloutBuffer::new(cfg.num_actors, cfg.horizon_length, obs_dim, act_dim, units, cfg.seq_len),
+            buffer,
             state: (units > 0).then(|| (vec![0.0; cfg.num_actors * units], vec![0.0; cfg.num_actors * units])),
             act_dim,
             fast,
@@ -397,6 +406,18 @@ impl Ppo {
         x
     }
 
+    /// A privileged critic's values normalised (statistics updated with `update`).
+    fn normalized_privileged(&mut self, raw: &[f32], update: bool) -> Vec<f32> {
+        let mut x = raw.to_vec();
+        if self.cfg.normalize_input && !x.is_empty() {
+            if update {
+                self.privileged_norm.update(raw);
+            }
+            self.privileged_norm.normalize(&mut x);
+        }
+        x
+    }
+
     fn denorm_values(&self, v: &mut [f32]) {
         if self.cfg.normalize_value {
             self.value_norm.denormalize(v);
@@ -410,10 +431,11 @@ impl Ppo {
         &self,
         net: &ActorCritic,
         obs: Vec<f32>,
+        privileged: &[f32],
         state: Option<RecurrentState>,
     ) -> (Vec<f32>, Vec<f32>, Option<RecurrentState>) {
         if let Some(fast) = &self.fast {
-            let (mu, mut v, next) = fast.infer(&obs, state);
+            let (mu, mut v, next) = fast.infer_privileged(&obs, privileged, state);
             self.denorm_values(&mut v);
             return (mu, v, next);
         }
@@ -422,7 +444,18 @@ impl Ppo {
         let units = net.lstm_units();
         let st =
             state.map(|(c, h)| LstmState::new(tensor2(c, n, units, &self.plain), tensor2(h, n, units, &self.plain)));
-        let (mu, v, next) = net.step(x, st);
+        let (mu, v, next) = if self.privileged_dim > 0 {
+            // Privileged critics are feed-forward (NetworkConfig::check). Without the values
+            // (the actor's mean is wanted) the critic reads zeros.
+            let (mu, v) = if privileged.is_empty() {
+                net.heads(x)
+            } else {
+                net.heads_privileged(x, Some(tensor2(privileged.to_vec(), n, self.privileged_dim, &self.plain)))
+            };
+            (mu, v, st)
+        } else {
+            net.step(x, st)
+        };
         let mut v = to_vec(v);
         self.denorm_values(&mut v);
         (to_vec(mu), v, next.map(|s| (to_vec(s.cell), to_vec(s.hidden))))
@@ -442,8 +475,12 @@ impl Ppo {
         self.sim_s = 0.0;
         let mut truncated: Vec<usize> = Vec::with_capacity(n);
         let mut bootstrap = vec![0.0f32; n];
+        let p = self.privileged_dim;
+        assert_eq!(env.privileged_dim(), p, "the environments keep the critic's privileged state");
         for t in 0..self.buffer.horizon {
             let obs = self.normalized(&env.obs, true);
+            let privileged = self.normalized_privileged(&env.privileged, true);
+            self.buffer.privileged[t * n * p..(t + 1) * n * p].copy_from_slice(&privileged);
             if units > 0 && t % self.cfg.seq_len == 0 {
                 let (c, h) = self.state.as_ref().expect("recurrent state");
                 let k = t / self.cfg.seq_len;
@@ -457,7 +494,7 @@ impl Ppo {
                 _ => labels.fill(f32::NAN),
             }
             let state = self.state.take();
-            let (mu, values, next) = self.infer(&net, obs, state);
+            let (mu, values, next) = self.infer(&net, obs, &privileged, state);
             self.state = next;
             for e in 0..n {
                 let i = t * n + e;
@@ -488,12 +525,15 @@ impl Ppo {
                     rows.extend_from_slice(&env.final_obs[e * d..(e + 1) * d]);
                 }
                 let rows = self.normalized(&rows, false);
+                let finals: Vec<f32> =
+                    truncated.iter().flat_map(|&e| env.final_privileged[e * p..(e + 1) * p].iter().copied()).collect();
+                let finals = self.normalized_privileged(&finals, false);
                 let st = self.state.as_ref().map(|(c, h)| {
                     let pick =
                         |v: &Vec<f32>| truncated.iter().flat_map(|e| v[e * units..(e + 1) * units].to_vec()).collect();
                     (pick(c), pick(h))
                 });
-                let (_, v, _) = self.infer(&net, rows, st);
+                let (_, v, _) = self.infer(&net, rows, &finals, st);
                 for (k, &e) in truncated.iter().enumerate() {
                     bootstrap[e] = self.cfg.gamma * v[k];
                 }
@@ -523,7 +563,8 @@ impl Ppo {
             self.buffer.starts[e] = self.buffer.dones[(self.buffer.horizon - 1) * n + e];
         }
         let obs = self.normalized(&env.obs, false);
-        let (_, last_values, _) = self.infer(&net, obs, self.state.clone());
+        let privileged = self.normalized_privileged(&env.privileged, false);
+        let (_, last_values, _) = self.infer(&net, obs, &privileged, self.state.clone());
         let b = &mut self.buffer;
         compute_gae(
             &b.rewards,
@@ -604,6 +645,8 @@ impl Ppo {
                 );
                 let mut starts = Vec::with_capacity(rows);
                 let mut teacher = Vec::with_capacity(if teach { rows * a } else { 0 });
+                let p = self.privileged_dim;
+                let mut privileged = Vec::with_capacity(rows * p);
                 for s in 0..seq {
                     for &item in chunk {
                         let i = index(item, s);
@@ -611,6 +654,7 @@ impl Ppo {
                             teacher.extend_from_slice(&self.buffer.teacher[i * a..(i + 1) * a]);
                         }
                         obs.extend_from_slice(&self.buffer.obs[i * d..(i + 1) * d]);
+                        privileged.extend_from_slice(&self.buffer.privileged[i * p..(i + 1) * p]);
                         act.extend_from_slice(&self.buffer.actions[i * a..(i + 1) * a]);
                         old_mu_v.extend_from_slice(&self.buffer.mus[i * a..(i + 1) * a]);
                         old_logp.push(self.buffer.log_probs[i]);
@@ -669,6 +713,7 @@ impl Ppo {
                         returns: &ret,
                         old_values: &old_v,
                         teacher: &teacher,
+                        privileged: &privileged,
                     };
                     let r = fast.step(&batch, &loss_cfg, lr, max_norm);
                     if let Some(max) = self.log_std_ceiling {
@@ -692,6 +737,9 @@ impl Ppo {
                             vs.push(v);
                         }
                         (Tensor::cat(mus, 0), Tensor::cat(vs, 0))
+                    } else if p > 0 {
+                        let x = tensor2(obs, rows, d, &dev);
+                        self.model().heads_privileged(x, Some(tensor2(privileged, rows, p, &dev)))
                     } else {
                         self.model().forward(tensor2(obs, rows, d, &dev))
                     };
@@ -806,7 +854,7 @@ impl Ppo {
         if self.cfg.normalize_input {
             self.obs_norm.normalize(&mut x);
         }
-        let (mu, _, next) = self.infer(net, x, state);
+        let (mu, _, next) = self.infer(net, x, &[], state);
         (mu, next)
     }
 }

@@ -38,6 +38,8 @@ pub struct RolloutBuffer {
     pub hiddens: Vec<f32>,
     /// A teacher's actions `[t][env][act]` (NaN where it gave none; see `crate::teacher`).
     pub teacher: Vec<f32>,
+    /// A privileged critic's normalised values `[t][env][privileged]` (empty without one).
+    pub privileged: Vec<f32>,
 }
 
 impl RolloutBuffer {
@@ -70,6 +72,7 @@ impl RolloutBuffer {
             cells: vec![0.0; seqs * n_envs * lstm_units],
             hiddens: vec![0.0; seqs * n_envs * lstm_units],
             teacher: vec![f32::NAN; n * act_dim],
+            privileged: Vec::new(),
         }
     }
 

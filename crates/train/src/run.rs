@@ -168,6 +168,9 @@ struct TrainerState {
     stage_epochs: usize,
     obs_norm: RunningMeanStd,
     value_norm: RunningMeanStd,
+    /// A privileged critic's input statistics (absent without one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    privileged_norm: Option<RunningMeanStd>,
     best_success_rate: f32,
     best_epoch: usize,
     #[serde(default)]
@@ -328,6 +331,9 @@ fn restore_checkpoint(
     }
     ppo.obs_norm = st.obs_norm.clone();
     ppo.value_norm = st.value_norm.clone();
+    if let Some(p) = &st.privileged_norm {
+        ppo.privileged_norm = p.clone();
+    }
     Ok(())
 }
 
@@ -577,6 +583,7 @@ pub fn train(
         stage_epochs: 0,
         obs_norm: RunningMeanStd::new(obs_dim),
         value_norm: RunningMeanStd::new(1),
+        privileged_norm: None,
         best_success_rate: -1.0,
         best_epoch: 0,
         first_90: None,
@@ -627,6 +634,7 @@ pub fn train(
         if let Some(a) = &cfg.auto_curriculum {
             env.start_levels(a.start_max, seed ^ 0x1E7E_1500)?;
         }
+        env.set_privileged(cfg.network.critic_movers);
         Ok(env)
     };
     let mut env = env_for(st.stage, st.epoch)?;
@@ -741,6 +749,7 @@ pub fn train(
         st.learning_rate = ppo.learning_rate();
         st.obs_norm = ppo.obs_norm.clone();
         st.value_norm = ppo.value_norm.clone();
+        st.privileged_norm = (cfg.network.critic_movers > 0).then(|| ppo.privileged_norm.clone());
         // The best checkpoint: on the held-out rooms when there are any (unless told not to).
         let selected = match cfg.eval.select {
             crate::config::Selection::Heldout => heldout_result.or(eval_result),

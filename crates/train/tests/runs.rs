@@ -484,3 +484,52 @@ fn an_lstm_run_is_deterministic_and_exports_its_state() {
         std::fs::remove_dir_all(d).ok();
     }
 }
+
+/// `network.critic_movers`: the critic reads the movers' privileged state in training (the
+/// run differs from the plain one), its input statistics are checkpointed and restored on
+/// resume, the exported actor reads the observation alone (no value output), and settings
+/// it cannot serve are refused naming the key.
+#[test]
+fn a_privileged_critic_trains_resumes_and_exports_the_actor_alone() {
+    let privileged = |extra: &[&str]| {
+        let mut set = vec![
+            "train.max_epochs=4".to_string(),
+            "train.threads=2".into(),
+            "scenario=heldout-dynamic-fast-crossing".into(),
+            "eval.scenario=heldout-dynamic-fast-crossing".into(),
+        ];
+        set.extend(extra.iter().map(|s| s.to_string()));
+        load_run_config(Some("smoke"), &set)
+    };
+    let (a, b) = (tmp("privileged-a"), tmp("privileged-b"));
+    let cfg = privileged(&["network.critic_movers=2"]).unwrap();
+    let o = opts(&a, false);
+    let stop = o.stop.clone();
+    train(&cfg, &o, &mut |r| {
+        if r.epoch == 2 {
+            stop.store(true, Ordering::Relaxed);
+        }
+    })
+    .unwrap();
+    let state: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.join("checkpoint/state.json")).unwrap()).unwrap();
+    let norm = &state["privileged_norm"];
+    assert_eq!(norm["mean"].as_array().map(Vec::len), Some(rlnav_sim::task::privileged_len(2)), "{norm}");
+    let s = train(&read_run_config(&a).unwrap(), &opts(&a, true), &mut |_| {}).unwrap();
+    assert_eq!(s.iterations, 4, "resumed to the end");
+    train(&privileged(&[]).unwrap(), &opts(&b, false), &mut |_| {}).unwrap();
+    assert_ne!(metrics(&a), metrics(&b), "the privileged critic changes the run");
+    let runner = rlnav_policy::PolicyRunner::load(&a.join("policy.onnx"), None).unwrap();
+    assert_eq!(runner.contract().obs_dim(), 124, "the actor reads the observation alone");
+    for (extra, words) in [
+        (&["network.critic_movers=2", "train.mirror=true"][..], ["train.mirror", "privileged"]),
+        (&["network.critic_movers=2", "network.lstm_units=8"][..], ["network.critic_movers", "feed-forward"]),
+        (&["network.critic_movers=2", "network.separate_critic=false"][..], ["network.critic_movers", "separate_critic"]),
+    ] {
+        let e = privileged(extra).unwrap_err().to_string();
+        assert!(words.iter().all(|w| e.contains(w)), "{extra:?}: {e}");
+    }
+    for d in [a, b] {
+        std::fs::remove_dir_all(d).ok();
+    }
+}
