@@ -217,8 +217,8 @@ impl ActorCritic {
     /// (the observation, or the LSTM's output). A privileged critic reads zeros in place of
     /// its privileged values here: see [`Self::heads_privileged`].
     pub fn heads(&self, features: Tensor<2>) -> (Tensor<2>, Tensor<1>) {
-        let privileged = (self.critic_extra > 0)
-            .then(|| Tensor::zeros([features.dims()[0], self.critic_extra], &features.device()));
+        let privileged =
+            (self.critic_extra > 0).then(|| Tensor::zeros([features.dims()[0], self.critic_extra], &features.device()));
         self.heads_privileged(features, privileged)
     }
 

@@ -1137,8 +1137,13 @@ mod tests {
         for (case, (activation, separate_critic, clip_value, clipped_actions, critic_movers)) in
             cases.into_iter().enumerate()
         {
-            let cfg =
-                NetworkConfig { hidden: vec![24, 16], activation, separate_critic, critic_movers, ..Default::default() };
+            let cfg = NetworkConfig {
+                hidden: vec![24, 16],
+                activation,
+                separate_critic,
+                critic_movers,
+                ..Default::default()
+            };
             let extra = cfg.critic_privileged_len();
             let (obs_dim, act_dim, rows) = (11, 2, 700); // rows span three chunks, the last partial
             let model = ActorCritic::seeded(&cfg, obs_dim, act_dim, &device, case as u64);

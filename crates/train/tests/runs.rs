@@ -524,7 +524,10 @@ fn a_privileged_critic_trains_resumes_and_exports_the_actor_alone() {
     for (extra, words) in [
         (&["network.critic_movers=2", "train.mirror=true"][..], ["train.mirror", "privileged"]),
         (&["network.critic_movers=2", "network.lstm_units=8"][..], ["network.critic_movers", "feed-forward"]),
-        (&["network.critic_movers=2", "network.separate_critic=false"][..], ["network.critic_movers", "separate_critic"]),
+        (
+            &["network.critic_movers=2", "network.separate_critic=false"][..],
+            ["network.critic_movers", "separate_critic"],
+        ),
     ] {
         let e = privileged(extra).unwrap_err().to_string();
         assert!(words.iter().all(|w| e.contains(w)), "{extra:?}: {e}");
