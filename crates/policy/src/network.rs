@@ -104,7 +104,7 @@ impl NetworkConfig {
 
     /// Privileged values the critic reads beside the observation (0 without `critic_movers`).
     pub fn critic_privileged_len(&self) -> usize {
-        if self.critic_movers > 0 { rlnav_sim::task::privileged_len(self.critic_movers) } else { 0 }
+        rlnav_sim::task::privileged_len(self.critic_movers)
     }
 }
 

@@ -76,9 +76,15 @@ impl Pose2 {
     /// A point in the parent frame expressed in this pose's frame.
     #[inline]
     pub fn to_local(&self, p: Vec2) -> Vec2 {
+        self.vector_to_local(p - self.position())
+    }
+
+    /// A free vector (a velocity, an offset) of the parent frame in this pose's frame: rotated,
+    /// not moved.
+    #[inline]
+    pub fn vector_to_local(&self, v: Vec2) -> Vec2 {
         let (s, c) = self.yaw.sin_cos();
-        let d = p - self.position();
-        Vec2::new(c * d.x + s * d.y, -s * d.x + c * d.y)
+        Vec2::new(c * v.x + s * v.y, -s * v.x + c * v.y)
     }
 
     /// Distance and bearing (in this pose's frame, wrapped to (-π, π]) of a parent-frame point.

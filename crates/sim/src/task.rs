@@ -660,9 +660,10 @@ pub const PRIVILEGED_PER_MOVER: usize = 5;
 /// Where [`NavEnv::write_privileged`] puts a mover that is not there (m ahead).
 pub const PRIVILEGED_FAR: f32 = 10.0;
 
-/// Length of [`NavEnv::write_privileged`]'s state for `movers` movers.
+/// Length of [`NavEnv::write_privileged`]'s state for `movers` movers (0 for none: no
+/// privileged state is kept).
 pub fn privileged_len(movers: usize) -> usize {
-    PRIVILEGED_PER_MOVER * movers + 2
+    if movers == 0 { 0 } else { PRIVILEGED_PER_MOVER * movers + 2 }
 }
 
 /// One robot navigating one episode after another.
@@ -1161,23 +1162,33 @@ impl NavEnv {
     /// scans, so a critic that sees only the scans values such states poorly; the mover's
     /// velocity makes it plain.
     pub fn write_privileged(&self, movers: usize, out: &mut [f32]) {
+        assert!(movers > 0, "a privileged state of at least one mover");
         assert_eq!(out.len(), privileged_len(movers), "privileged state of {movers} movers");
         let pose = &self.drive.pose;
-        let (s, c) = pose.yaw.sin_cos();
-        let own = Vec2::new(c, s) * self.drive.velocity.linear;
-        let local = |v: Vec2| Vec2::new(c * v.x + s * v.y, -s * v.x + c * v.y);
         let here = pose.position();
-        let mut things: Vec<(f32, Vec2, Vec2, f32)> = self
-            .movers
-            .iter()
-            .map(|m| (m.pose.position(), m.velocity, m.shape.bound_radius()))
-            .chain(self.crowd.people.iter().map(|p| (p.position, p.velocity, p.radius)))
-            .map(|(p, v, r)| ((p - here).length() - r, pose.to_local(p), local(v - own), r))
-            .collect();
-        things.sort_by(|a, b| a.0.total_cmp(&b.0));
-        for (k, slot) in out[..PRIVILEGED_PER_MOVER * movers].chunks_exact_mut(PRIVILEGED_PER_MOVER).enumerate() {
-            match things.get(k) {
-                Some(&(_, p, v, r)) => slot.copy_from_slice(&[p.x, p.y, v.x, v.y, r]),
+        let own = Vec2::new(pose.yaw.cos(), pose.yaw.sin()) * self.drive.velocity.linear;
+        // (gap, index, centre, velocity, radius) of every mover and person.
+        let things = || {
+            self.movers
+                .iter()
+                .map(|m| (m.pose.position(), m.velocity, m.shape.bound_radius()))
+                .chain(self.crowd.people.iter().map(|p| (p.position, p.velocity, p.radius)))
+                .enumerate()
+                .map(move |(i, (p, v, r))| ((p - here).length() - r, i, p, v, r))
+        };
+        // Slot by slot, the nearest after the previous slot's (by gap, then index): no
+        // allocation, and a handful of movers makes the repeated scan cheap.
+        let mut after: Option<(f32, usize)> = None;
+        for slot in out[..PRIVILEGED_PER_MOVER * movers].chunks_exact_mut(PRIVILEGED_PER_MOVER) {
+            let next = things()
+                .filter(|t| after.is_none_or(|a| (t.0, t.1) > a))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            match next {
+                Some((gap, i, p, v, r)) => {
+                    let (p, v) = (pose.to_local(p), pose.vector_to_local(v - own));
+                    slot.copy_from_slice(&[p.x, p.y, v.x, v.y, r]);
+                    after = Some((gap, i));
+                }
                 None => slot.copy_from_slice(&[PRIVILEGED_FAR, 0.0, 0.0, 0.0, 0.0]),
             }
         }
@@ -1189,7 +1200,7 @@ impl NavEnv {
     /// Keeps the privileged state of `movers` movers at every episode's end (0: none).
     pub fn set_privileged_movers(&mut self, movers: usize) {
         self.privileged_movers = movers;
-        self.final_privileged = vec![0.0; if movers > 0 { privileged_len(movers) } else { 0 }];
+        self.final_privileged = vec![0.0; privileged_len(movers)];
     }
 
     /// Stores the privileged state now, the episode's last (before [`NavEnv::reset`]).
@@ -1333,8 +1344,7 @@ mod tests {
         movers.sort_by(|a, b| gap(a).total_cmp(&gap(b)));
         for (slot, m) in out.chunks_exact(PRIVILEGED_PER_MOVER).zip(&movers) {
             let p = pose.to_local(m.pose.position());
-            // The relative velocity, rotated into the robot frame: to_local of a free vector.
-            let v = pose.to_local(pose.position() + (m.velocity - own));
+            let v = pose.vector_to_local(m.velocity - own);
             let want = [p.x, p.y, v.x, v.y, m.shape.bound_radius()];
             for (got, want) in slot.iter().zip(want) {
                 assert!((got - want).abs() < 1e-4, "{slot:?} against {want:?}");

@@ -237,7 +237,7 @@ impl VecEnv {
     /// keeps none).
     pub fn set_privileged(&mut self, movers: usize) {
         self.privileged_movers = movers;
-        let p = if movers > 0 { privileged_len(movers) } else { 0 };
+        let p = privileged_len(movers);
         self.privileged = vec![0.0; self.envs.len() * p];
         self.final_privileged = vec![0.0; self.envs.len() * p];
         for env in &mut self.envs {
@@ -248,7 +248,7 @@ impl VecEnv {
 
     /// Length of one environment's privileged state (0 when none is kept).
     pub fn privileged_dim(&self) -> usize {
-        if self.privileged_movers > 0 { privileged_len(self.privileged_movers) } else { 0 }
+        privileged_len(self.privileged_movers)
     }
 
     /// Writes the current privileged state and, with `finals`, the final one of the
