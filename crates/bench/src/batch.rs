@@ -113,7 +113,7 @@ mod tests {
     use crate::evaluate::evaluate_controller;
     use rlnav_policy::PolicyRunner;
     use rlnav_sim::Controller;
-    use rlnav_sim::task::{ActionConfig, TaskConfig};
+    use rlnav_sim::task::TaskConfig;
     use std::path::Path;
 
     const POLICY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx");
@@ -137,11 +137,7 @@ mod tests {
         // the same drive.
         let runner = PolicyRunner::load(Path::new(POLICY), None).unwrap();
         let c = runner.contract().clone();
-        let task = TaskConfig {
-            control_period: c.control_period,
-            action: ActionConfig { linear: c.action.linear, angular: c.action.angular },
-            ..Default::default()
-        };
+        let task = TaskConfig { control_period: c.control_period, action: c.action.ranges(), ..Default::default() };
         let setup = |name: &str| {
             let s = EnvSetup::from_scenario_name(name).unwrap();
             Arc::new(EnvSetup::new(s.scenario.spec().clone(), s.robot.clone(), task.clone()).unwrap())

@@ -4,7 +4,7 @@
 
 use rlnav_planners::Dwa;
 use rlnav_policy::PolicyRunner;
-use rlnav_sim::task::{ActionConfig, EnvSetup, TaskConfig};
+use rlnav_sim::task::{EnvSetup, TaskConfig};
 use rlnav_sim::{Controller, GreedyGoal, StraightAhead};
 use std::path::Path;
 
@@ -23,7 +23,8 @@ pub enum ControllerError {
 }
 
 /// A controller by name: `greedy` (turn towards the goal and drive, blind), `straight`, or an
-/// ONNX policy `rl:FILE[:CONTRACT]`.
+/// ONNX policy `rl:FILE[:CONTRACT]` (one whose speed is a share of the robot's top speed
+/// needs the robot: [`for_setup`]).
 pub fn by_name(name: &str) -> Result<Box<dyn Controller>, ControllerError> {
     match name {
         "greedy" => Ok(Box::new(GreedyGoal::default())),
@@ -53,7 +54,7 @@ pub fn task_for(name: &str, base: &TaskConfig) -> Result<TaskConfig, ControllerE
     Ok(TaskConfig {
         control_period: c.control_period,
         physics_dt: c.control_period / substeps,
-        action: ActionConfig { linear: c.action.linear, angular: c.action.angular },
+        action: c.action.ranges(),
         plan: c.plan.clone(),
         ..base.clone()
     })
@@ -100,6 +101,14 @@ pub fn check(name: &str, setup: &EnvSetup) -> Result<Vec<String>, ControllerErro
 pub fn for_setup(name: &str, setup: &EnvSetup) -> Result<Box<dyn Controller>, ControllerError> {
     match name {
         "dwa" => Ok(Box::new(Dwa::for_setup(setup))),
-        other => by_name(other),
+        other => match rl_spec(other) {
+            // The robot is known here: a policy whose speed is a share of its top speed gets it.
+            Some((model, contract)) => {
+                let mut runner = PolicyRunner::load(Path::new(&model), contract.as_deref().map(Path::new))?;
+                runner.set_top_speed(setup.robot.max_linear);
+                Ok(Box::new(runner))
+            }
+            None => by_name(other),
+        },
     }
 }

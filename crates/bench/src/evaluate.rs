@@ -125,7 +125,7 @@ pub fn evaluate_policy(
 ) -> Result<PolicyEvaluation, crate::suite::BenchError> {
     use crate::suite::BenchError;
     use rlnav_policy::PolicyRunner;
-    use rlnav_sim::task::{ActionConfig, TaskConfig};
+    use rlnav_sim::task::TaskConfig;
     use rlnav_sim::{RobotSpec, ScenarioSpec};
     let bad = |message: String| BenchError::Controller { name: policy.display().to_string(), message };
     let runner = PolicyRunner::load(policy, contract).map_err(|e| bad(e.to_string()))?;
@@ -140,15 +140,16 @@ pub fn evaluate_policy(
     runner
         .check_lidar(&robot.lidar)
         .map_err(|e| bad(format!("the policy's scan contract does not fit {}'s lidar: {e}", robot.name)))?;
-    let task = TaskConfig {
-        control_period: c.control_period,
-        action: ActionConfig { linear: c.action.linear, angular: c.action.angular },
-        ..Default::default()
-    };
+    let task = TaskConfig { control_period: c.control_period, action: c.action.ranges(), ..Default::default() };
     let setup = Arc::new(EnvSetup::new(scenario, robot, task)?);
     let (summary, episodes, _) = evaluate_controller(
         setup.clone(),
-        || PolicyRunner::load(policy, contract).map(|r| Box::new(r) as Box<dyn Controller>),
+        || {
+            PolicyRunner::load(policy, contract).map(|mut r| {
+                r.set_top_speed(setup.robot.max_linear);
+                Box::new(r) as Box<dyn Controller>
+            })
+        },
         episodes,
         seed,
         threads,

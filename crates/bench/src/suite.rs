@@ -340,9 +340,20 @@ pub fn run_suite_with(
     // The scenes every controller gets, drawn from one compiled scenario: the one for the
     // largest turning radius among the tasks, so that no controller starts closer to a wall
     // than it can turn away from. Compiled per task, starts (and so episodes) would differ.
+    // A range in shares of the top speed turns widest on the fastest robot of the suite.
+    let top_speed = match robot {
+        Some(r) => RobotSpec::load(r)?.max_linear,
+        None => suite
+            .scenarios
+            .iter()
+            .map(|name| Ok(RobotSpec::load(&ScenarioSpec::load(name)?.robot)?.max_linear))
+            .collect::<Result<Vec<f32>, BenchError>>()?
+            .into_iter()
+            .fold(0.0, f32::max),
+    };
     let mut scene_task = &base;
     for t in tasks.iter().chain(&batch_task) {
-        if t.turning_radius() > scene_task.turning_radius() {
+        if t.turning_radius(top_speed) > scene_task.turning_radius(top_speed) {
             scene_task = t;
         }
     }

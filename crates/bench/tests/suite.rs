@@ -273,9 +273,9 @@ fn controllers_under_different_action_ranges_get_the_same_scenes() {
         "name: tight\nscenarios: [heldout-static-corridor]\nepisodes: 8\n",
     )
     .unwrap();
-    let stop = TaskConfig { action: ActionConfig { linear: [0.0, 0.5], angular: [-0.5, 0.5] }, ..Default::default() };
-    assert_eq!(stop.turning_radius(), 0.0);
-    assert!((TaskConfig::default().turning_radius() - 0.2).abs() < 1e-6);
+    let stop = TaskConfig { action: ActionConfig { linear: [0.0, 0.5], ..Default::default() }, ..Default::default() };
+    assert_eq!(stop.turning_radius(0.5), 0.0);
+    assert!((TaskConfig::default().turning_radius(0.5) - 0.2).abs() < 1e-6);
     let policy = format!("rl:{}", concat!(env!("CARGO_MANIFEST_DIR"), "/../../policies/jetbot-static-mlp.onnx"));
     let run = |controllers: &[String], task: Option<&TaskConfig>| {
         let opts = RunOptions { robot: None, episodes: 8, seed: 3, threads: 2, record: None, task };

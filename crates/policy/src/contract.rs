@@ -111,12 +111,34 @@ pub struct ActionContract {
     pub linear: [f32; 2],
     /// Angular velocity range `[min, max]` (rad/s).
     pub angular: [f32; 2],
+    /// `linear` is in fractions of the robot's top speed, not m/s
+    /// ([`rlnav_sim::task::ActionConfig::linear_relative`]): whoever runs the policy must
+    /// know the robot's top speed ([`Self::for_top_speed`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub linear_relative: bool,
 }
 
 impl ActionContract {
+    /// The ranges in m/s on a robot whose top speed is `top_speed`: itself when they are in
+    /// m/s already.
+    pub fn for_top_speed(&self, top_speed: f32) -> Self {
+        let ranges = self.ranges().for_top_speed(top_speed);
+        Self { linear: ranges.linear, linear_relative: false, ..self.clone() }
+    }
+
+    /// The ranges as the simulator's task takes them (it clips every command to them).
+    pub fn ranges(&self) -> rlnav_sim::task::ActionConfig {
+        rlnav_sim::task::ActionConfig {
+            linear: self.linear,
+            angular: self.angular,
+            linear_relative: self.linear_relative,
+        }
+    }
+
     /// The velocity command for network output `mu` (a non-finite value stops the robot).
+    /// The ranges must be in m/s ([`Self::for_top_speed`]): a relative range stops the robot.
     pub fn to_twist(&self, mu: [f32; 2]) -> Twist {
-        if !(mu[0].is_finite() && mu[1].is_finite()) {
+        if self.linear_relative || !(mu[0].is_finite() && mu[1].is_finite()) {
             return Twist::default();
         }
         let map = |x: f32, r: [f32; 2]| match self.scaling {
@@ -260,7 +282,8 @@ impl Validate for PolicyContract {
                 return Err(Invalid::new(key, format!("a divisor of scan.beams ({}), got {beams}", self.scan.beams)));
             }
         }
-        check_interval("action.linear", self.action.linear, -100.0, 100.0)?;
+        let linear_max = if self.action.linear_relative { 1.0 } else { 100.0 };
+        check_interval("action.linear", self.action.linear, -linear_max, linear_max)?;
         check_interval("action.angular", self.action.angular, -100.0, 100.0)?;
         check_range("control_period", self.control_period, 1e-3, 10.0)?;
         check_positive("goal_tolerance", self.goal_tolerance)?;
@@ -306,6 +329,7 @@ impl PolicyContract {
                 scaling: ActionScaling::Normalized,
                 linear: task.action.linear,
                 angular: task.action.angular,
+                linear_relative: task.action.linear_relative,
             },
             control_period: task.control_period,
             goal_tolerance: task.goal_tolerance,

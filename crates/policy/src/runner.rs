@@ -4,7 +4,7 @@
 //! clipped to the contract's limits. Anything wrong in what it is given stops the robot
 //! (zero command) and is reported by [`PolicyRunner::fault`].
 
-use crate::contract::{CONTRACT_KEY, PolicyContract};
+use crate::contract::{ActionContract, CONTRACT_KEY, PolicyContract};
 use crate::scan::{ScanAdapter, ScanError};
 use rlnav_sim::observation::{ObservationBuilder, ObservationInputs};
 use rlnav_sim::{Controller, RobotObservation, Twist};
@@ -57,6 +57,19 @@ pub enum PolicyError {
     /// The observation could not be built.
     #[error(transparent)]
     Scan(#[from] ScanError),
+    /// The policy's linear action is a share of the robot's top speed, and none was given.
+    #[error(
+        "{file}: its linear action is a fraction of the robot's top speed ({min}–{max}), and the robot's top \
+         speed was not given (the ROS 2 node's `max_linear`)"
+    )]
+    NoTopSpeed {
+        /// The file.
+        file: String,
+        /// The contract's linear range, fractions of the top speed.
+        min: f32,
+        /// Its upper end.
+        max: f32,
+    },
 }
 
 /// What one inference returns.
@@ -91,6 +104,9 @@ pub struct PolicyRunner {
     adapter: Option<ScanAdapter>,
     last: Twist,
     fault: Option<String>,
+    /// The contract's action in m/s: `None` while a relative one waits for the robot's top
+    /// speed ([`Self::set_top_speed`]).
+    action: Option<ActionContract>,
     /// The plan being followed and the segment the robot's projection lay on last (policies
     /// trained on plans); a new plan starts from its beginning.
     nav_plan: Option<std::sync::Arc<[rlnav_sim::Vec2]>>,
@@ -255,6 +271,7 @@ impl PolicyRunner {
             adapter: None,
             last: Twist::default(),
             fault: None,
+            action: (!contract.action.linear_relative).then(|| contract.action.clone()),
             nav_plan: None,
             plan_progress: 0,
             ahead: Vec::new(),
@@ -283,6 +300,17 @@ impl PolicyRunner {
         let scan = rlnav_sim::LaserScan { ranges: vec![1.0; spec.beams], ..rlnav_sim::LaserScan::for_spec(spec) };
         ScanAdapter::new(&self.contract.scan, &scan, spec.mount.yaw)?;
         Ok(())
+    }
+
+    /// Tells the runner the robot's top speed (m/s), which a policy whose linear action is a
+    /// fraction of it needs; it changes nothing for one in m/s.
+    pub fn set_top_speed(&mut self, top_speed: f32) {
+        self.action = Some(self.contract.action.for_top_speed(top_speed));
+    }
+
+    /// Whether the policy needs the robot's top speed ([`Self::set_top_speed`]) and has none.
+    pub fn needs_top_speed(&self) -> bool {
+        self.action.is_none()
     }
 
     /// Why the last [`Controller::act`] stopped the robot, if it did.
@@ -377,6 +405,10 @@ impl PolicyRunner {
 
     /// One control step: observation, inference, command; errors instead of stopping.
     pub fn try_act(&mut self, o: &RobotObservation) -> Result<Twist, PolicyError> {
+        if self.action.is_none() {
+            let [min, max] = self.contract.action.linear;
+            return Err(PolicyError::NoTopSpeed { file: self.source.clone(), min, max });
+        }
         self.build_observation(o)?;
         // This step's observation joins the history whatever the network makes of it: the
         // robot was there and saw it.
@@ -384,7 +416,8 @@ impl PolicyRunner {
         let obs = std::mem::take(&mut self.obs);
         let out = self.infer(&obs);
         self.obs = obs;
-        let cmd = self.contract.action.to_twist(out?.mu);
+        let mu = out?.mu;
+        let cmd = self.action.as_ref().map_or_else(Twist::default, |a| a.to_twist(mu));
         self.last = cmd;
         Ok(cmd)
     }

@@ -96,8 +96,12 @@ fn the_runner_puts_every_value_where_the_layout_says() {
     for (file, n, ranges, _) in LAYOUTS {
         let mut contract = PolicyContract::from_file(&contract_path(file)).unwrap();
         // Commands equal to mu: the echo model's outputs come back unclipped.
-        contract.action =
-            ActionContract { scaling: ActionScaling::Direct, linear: [-100.0, 100.0], angular: [-100.0, 100.0] };
+        contract.action = ActionContract {
+            scaling: ActionScaling::Direct,
+            linear: [-100.0, 100.0],
+            angular: [-100.0, 100.0],
+            linear_relative: false,
+        };
         // Every non-range value, and ranges at both ends and in the middle.
         let mut probes: Vec<usize> = vec![0, ranges / 2, ranges - 1];
         probes.extend(ranges..n);

@@ -23,7 +23,12 @@ fn contract(io: GraphIo) -> PolicyContract {
         robot: "jetbot".into(),
         observation: ObservationLayout::default(),
         scan: ScanContract::of(&LidarSpec::default()),
-        action: ActionContract { scaling: ActionScaling::Normalized, linear: [0.1, 0.5], angular: [-0.5, 0.5] },
+        action: ActionContract {
+            scaling: ActionScaling::Normalized,
+            linear: [0.1, 0.5],
+            angular: [-0.5, 0.5],
+            linear_relative: false,
+        },
         control_period: 0.1,
         goal_tolerance: 0.3,
         io,

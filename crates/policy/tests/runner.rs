@@ -29,6 +29,7 @@ fn contract_for(setup: &EnvSetup) -> PolicyContract {
             scaling: ActionScaling::Normalized,
             linear: setup.task.action.linear,
             angular: setup.task.action.angular,
+            linear_relative: false,
         },
         control_period: setup.task.control_period,
         goal_tolerance: setup.task.goal_tolerance,
@@ -145,6 +146,57 @@ fn garbage_in_stops_the_robot_and_says_why() {
     // Good data again: it drives again.
     assert_ne!(runner.act(&o), Twist::default());
     assert!(runner.fault().is_none());
+}
+
+#[test]
+fn a_policy_in_shares_of_the_top_speed_needs_the_robot_and_then_drives_as_in_training() {
+    use rlnav_sim::task::ActionConfig;
+    let task = rlnav_sim::TaskConfig {
+        action: ActionConfig { linear: [0.2, 1.0], linear_relative: true, ..Default::default() },
+        ..Default::default()
+    };
+    let burger = rlnav_sim::RobotSpec::load("turtlebot3-burger").unwrap();
+    let spec = rlnav_sim::ScenarioSpec::load("static-room").unwrap();
+    let setup = Arc::new(EnvSetup::new(spec, burger.clone(), task.clone()).unwrap());
+    // The simulator drives the Burger from a fifth of its top speed to all of it.
+    let [lo, hi] = setup.task.action.linear;
+    assert!((lo - 0.2 * burger.max_linear).abs() < 1e-6 && (hi - burger.max_linear).abs() < 1e-6, "{lo} {hi}");
+    assert!(!setup.task.action.linear_relative);
+    // The contract keeps the shares, and says so; one in m/s reads as before.
+    let contract = PolicyContract::for_task("relative", &task, &burger, GraphIo::default(), None);
+    assert_eq!((contract.action.linear, contract.action.linear_relative), ([0.2, 1.0], true));
+    let yaml = contract.to_yaml();
+    assert!(yaml.contains("linear_relative: true"), "{yaml}");
+    assert_eq!(PolicyContract::from_yaml("c.yaml", &yaml).unwrap(), contract);
+    assert!(!contract_for(&setup).to_yaml().contains("linear_relative"));
+    // Shares beyond the top speed are refused, naming the key.
+    let mut over = contract.clone();
+    over.action.linear = [0.2, 1.5];
+    let e = PolicyContract::from_yaml("over.yaml", &over.to_yaml()).unwrap_err().to_string();
+    assert!(e.contains("action.linear") && e.contains("<= 1"), "{e}");
+
+    let net =
+        ActorCritic::seeded(&NetworkConfig { hidden: vec![16], ..Default::default() }, 124, 2, &Device::flex(), 5);
+    let proto = export_model(&net, &RunningMeanStd::new(124), &contract).unwrap();
+    let mut runner = PolicyRunner::from_proto("relative.onnx", &proto, contract).unwrap();
+    let mut env = NavEnv::new(setup.clone(), 2).unwrap();
+    let mut o = RobotObservation::default();
+    env.robot_observation(&mut o);
+    // Not told the robot's top speed: it stops, and says what it needs.
+    assert!(runner.needs_top_speed());
+    assert_eq!(runner.act(&o), Twist::default());
+    assert!(runner.fault().unwrap().contains("top speed"), "{:?}", runner.fault());
+    // Told: the command is the simulator's for the same action, within the Burger's range.
+    runner.set_top_speed(burger.max_linear);
+    assert!(!runner.needs_top_speed());
+    let obs = runner.build_observation(&o).unwrap().to_vec();
+    let mu = runner.infer(&obs).unwrap().mu;
+    runner.reset();
+    let cmd = runner.act(&o);
+    assert_eq!(cmd, setup.task.action.to_twist(mu));
+    assert!((lo..=hi).contains(&cmd.linear), "{cmd:?}");
+    let steps = common::runner_matches_simulator(&mut runner, &mut env, "shares of the Burger's top speed");
+    assert!(steps > 20, "{steps} steps compared");
 }
 
 /// The reference article's policies, vendored with their licence.

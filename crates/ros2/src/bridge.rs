@@ -67,6 +67,7 @@ pub fn bridge_setup(scenario: &str, robot: Option<&str>) -> Result<Arc<EnvSetup>
         action: ActionConfig {
             linear: [robot.min_linear.min(0.0), robot.max_linear],
             angular: [-robot.max_angular, robot.max_angular],
+            linear_relative: false,
         },
         ..Default::default()
     };

@@ -75,7 +75,8 @@ pub struct NodeParams {
     pub goal: Option<[f64; 2]>,
     /// Distance at which the goal counts as reached (m); default: the policy's contract.
     pub goal_tolerance: Option<f32>,
-    /// Cap on |linear| (m/s) below the policy's limits.
+    /// Cap on |linear| (m/s) below the policy's limits. For a policy whose linear action is a
+    /// fraction of the robot's top speed, this is that top speed, and it is required.
     pub max_linear: Option<f32>,
     /// Cap on |angular| (rad/s) below the policy's limits.
     pub max_angular: Option<f32>,
@@ -512,7 +513,11 @@ fn finite_pose(p: &msg::Pose) -> Option<Pose2> {
 
 impl PolicyNode {
     /// The node for `runner` with `params`.
-    pub fn new(runner: PolicyRunner, params: NodeParams) -> Self {
+    pub fn new(mut runner: PolicyRunner, params: NodeParams) -> Self {
+        // Without it such a policy stops the robot at every tick, saying why.
+        if let Some(v) = params.max_linear {
+            runner.set_top_speed(v);
+        }
         let tolerance = params.goal_tolerance.unwrap_or(runner.contract().goal_tolerance);
         // The lookahead the policy was trained with, else half the lidar's range.
         let trained = runner.contract().plan.as_ref().map(|p| p.lookahead);

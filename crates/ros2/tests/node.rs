@@ -486,7 +486,12 @@ fn odometry_and_goals_feed_the_articles_133_layout() {
     use rlnav_policy::contract::{ActionContract, ActionScaling, PolicyContract};
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts/article-mlp-133.yaml");
     let mut contract = PolicyContract::from_file(std::path::Path::new(path)).unwrap();
-    contract.action = ActionContract { scaling: ActionScaling::Direct, linear: [-9.0, 9.0], angular: [-9.0, 9.0] };
+    contract.action = ActionContract {
+        scaling: ActionScaling::Direct,
+        linear: [-9.0, 9.0],
+        angular: [-9.0, 9.0],
+        linear_relative: false,
+    };
     // mu = [lateral velocity (value 131), the oldest goal bearing of five (value 120)].
     let proto = rlnav_policy::export::echo_model(133, [131, 120], &contract.io).unwrap();
     let runner = PolicyRunner::from_proto("echo.onnx", &proto, contract).unwrap();
@@ -518,6 +523,37 @@ fn odometry_and_goals_feed_the_articles_133_layout() {
     n.on_goal(&goal(0.8, 2.0, "odom"));
     let c = n.tick(0.55);
     assert!((c.angular - (2.0f32).atan2(0.8 - 0.8)).abs() < 1e-5, "{c:?}");
+}
+
+/// A policy whose linear action is a share of the robot's top speed takes that speed from
+/// `max_linear`; without it the node stops the robot and says what it needs.
+#[test]
+fn a_policy_in_shares_of_the_top_speed_takes_it_from_max_linear() {
+    use rlnav_policy::contract::{ActionContract, ActionScaling, PolicyContract};
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts/article-mlp-133.yaml");
+    let mut contract = PolicyContract::from_file(std::path::Path::new(path)).unwrap();
+    contract.action = ActionContract {
+        scaling: ActionScaling::Normalized,
+        linear: [0.0, 1.0],
+        angular: [-0.5, 0.5],
+        linear_relative: true,
+    };
+    // mu[0] is the lateral velocity (value 131): 0.5 asks for three quarters of the top speed.
+    let proto = rlnav_policy::export::echo_model(133, [131, 120], &contract.io).unwrap();
+    for (max_linear, want) in [(None, 0.0), (Some(0.22), 0.75 * 0.22), (Some(0.5), 0.75 * 0.5)] {
+        let runner = PolicyRunner::from_proto("echo.onnx", &proto, contract.clone()).unwrap();
+        let mut n = PolicyNode::new(runner, NodeParams { max_linear, ..NodeParams::default() });
+        let mut o = odom(0.0, 0.0, 0.0);
+        o.twist.twist.linear.y = 0.5;
+        n.on_odom(&o, 0.0);
+        n.on_goal(&goal(3.0, 1.0, "odom"));
+        n.on_scan(&scan(vec![1.5; 360], 1), 0.0);
+        let c = n.tick(0.0);
+        assert!((c.linear - want).abs() < 1e-6, "max_linear {max_linear:?}: {c:?}");
+        if max_linear.is_none() {
+            assert!(matches!(n.state(), NodeState::Stopped(why) if why.contains("max_linear")), "{}", n.state());
+        }
+    }
 }
 
 proptest! {

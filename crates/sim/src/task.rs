@@ -24,19 +24,34 @@ use std::sync::Arc;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ActionConfig {
-    /// Linear velocity range `[min, max]` (m/s), default the article's [0.1, 0.5].
+    /// Linear velocity range `[min, max]` (m/s), default the article's [0.1, 0.5]; with
+    /// `linear_relative`, fractions of the robot's top speed.
     pub linear: [f32; 2],
     /// Angular velocity range `[min, max]` (rad/s), default [-0.5, 0.5].
     pub angular: [f32; 2],
+    /// `linear` is in fractions of the robot's nominal top speed (its spec's `max_linear`),
+    /// not m/s: the same action is the same share of the robot's speed on every robot. In m/s,
+    /// a policy for several robots spends most of its range above a slow robot's top speed
+    /// (on a 0.22 m/s TurtleBot3 Burger, 70% of [0.1, 0.5] gives the same command).
+    pub linear_relative: bool,
 }
 
 impl Default for ActionConfig {
     fn default() -> Self {
-        Self { linear: [0.1, 0.5], angular: [-0.5, 0.5] }
+        Self { linear: [0.1, 0.5], angular: [-0.5, 0.5], linear_relative: false }
     }
 }
 
 impl ActionConfig {
+    /// The ranges in m/s for a robot whose top speed is `top_speed`: itself when `linear`
+    /// is in m/s already.
+    pub fn for_top_speed(&self, top_speed: f32) -> Self {
+        if !self.linear_relative {
+            return self.clone();
+        }
+        Self { linear: self.linear.map(|v| v * top_speed), angular: self.angular, linear_relative: false }
+    }
+
     /// Clips an action to `[-1, 1]` and rescales it to the velocity ranges. A non-finite
     /// component maps to the middle of its range.
     #[inline]
@@ -292,7 +307,8 @@ impl Validate for TaskConfig {
         if let Some(p) = &self.plan {
             p.validate().map_err(|e| e.under("plan"))?;
         }
-        check_interval("action.linear", self.action.linear, -100.0, 100.0)?;
+        let linear_max = if self.action.linear_relative { 1.0 } else { 100.0 };
+        check_interval("action.linear", self.action.linear, -linear_max, linear_max)?;
         check_interval("action.angular", self.action.angular, -100.0, 100.0)?;
         let r = &self.reward;
         for (k, v) in [
@@ -334,11 +350,12 @@ impl TaskConfig {
         from_yaml_file(path)
     }
 
-    /// The tightest circle the action ranges drive (m): `v_min / w_max`, 0 for a robot that
-    /// may stop and turn on the spot. Starts keep this much extra room from obstacles.
-    pub fn turning_radius(&self) -> f32 {
-        let (v_min, w_max) =
-            (self.action.linear[0].max(0.0), self.action.angular[0].abs().max(self.action.angular[1].abs()));
+    /// The tightest circle the action ranges drive (m) on a robot whose top speed is
+    /// `top_speed`: `v_min / w_max`, 0 for a robot that may stop and turn on the spot. Starts
+    /// keep this much extra room from obstacles.
+    pub fn turning_radius(&self, top_speed: f32) -> f32 {
+        let a = self.action.for_top_speed(top_speed);
+        let (v_min, w_max) = (a.linear[0].max(0.0), a.angular[0].abs().max(a.angular[1].abs()));
         if v_min > 0.0 && w_max > 0.0 { v_min / w_max } else { 0.0 }
     }
 }
@@ -530,7 +547,7 @@ pub struct EnvSetup {
     pub scenario: Scenario,
     /// The robot.
     pub robot: RobotSpec,
-    /// The task.
+    /// The task, its action ranges in m/s for this robot ([`ActionConfig::for_top_speed`]).
     pub task: TaskConfig,
     /// The robot's lidar, compiled.
     pub lidar: Lidar,
@@ -545,9 +562,11 @@ pub struct EnvSetup {
 
 impl EnvSetup {
     /// Checks that the pieces fit and compiles them.
-    pub fn new(scenario: ScenarioSpec, robot: RobotSpec, task: TaskConfig) -> Result<Self, SimError> {
+    pub fn new(scenario: ScenarioSpec, robot: RobotSpec, mut task: TaskConfig) -> Result<Self, SimError> {
         task.validate().map_err(|e| e.in_file("<task>"))?;
         robot.validate().map_err(|e| e.in_file(&format!("<robot {}>", robot.name)))?;
+        // Everything past here (commands, clipping, turning room, DWA labels) works in m/s.
+        task.action = task.action.for_top_speed(robot.max_linear);
         let beams = robot.lidar.beams;
         for (key, b) in task.observation.lidar_terms() {
             if beams % b != 0 {
@@ -563,7 +582,7 @@ impl EnvSetup {
         let clearance = footprint.radius().max(task.collision_range);
         // A robot that cannot turn on the spot (v_min > 0) needs its turning radius of room
         // at the start, or a start facing a wall is a collision no policy can avoid.
-        let scenario = Scenario::new(scenario, clearance, task.turning_radius())?;
+        let scenario = Scenario::new(scenario, clearance, task.turning_radius(robot.max_linear))?;
         let substeps = (task.control_period / task.physics_dt).round() as u32;
         let obs_dim = task.observation.len();
         Ok(Self {
@@ -1374,6 +1393,23 @@ mod tests {
         let t = Twist::new(0.3, 0.25);
         let back = a.to_twist(a.to_action(t));
         assert!((back.linear - 0.3).abs() < 1e-6 && (back.angular - 0.25).abs() < 1e-6);
+        // In m/s already: unchanged by a top speed. In shares of it: scaled, angular kept.
+        assert_eq!(a.for_top_speed(0.22), a);
+        let shares = ActionConfig { linear: [0.2, 1.0], linear_relative: true, ..Default::default() };
+        let burger = shares.for_top_speed(0.22);
+        assert_eq!((burger.linear, burger.angular, burger.linear_relative), ([0.2 * 0.22, 0.22], a.angular, false));
+        assert_eq!(burger.to_twist([1.0, 0.0]).linear, 0.22);
+        // A share above the top speed is refused, naming the key; the same range in m/s is not.
+        let task = |linear_relative| TaskConfig {
+            action: ActionConfig { linear: [0.2, 1.5], linear_relative, ..Default::default() },
+            ..Default::default()
+        };
+        let e = task(true).validate().unwrap_err();
+        assert!(e.key == "action.linear" && e.expected.contains("<= 1"), "{e:?}");
+        task(false).validate().unwrap();
+        // The turning room at the start follows the robot's slowest command.
+        let relative = TaskConfig { action: shares, ..Default::default() };
+        assert!((relative.turning_radius(0.22) - 0.2 * 0.22 / 0.5).abs() < 1e-6);
     }
 
     #[test]
@@ -1621,7 +1657,7 @@ mod tests {
     fn standing_still_costs_the_idle_penalty_and_driving_does_not() {
         let spec = ScenarioSpec::load("empty-room").unwrap();
         let robot = RobotSpec::load("jetbot").unwrap();
-        let stop = ActionConfig { linear: [0.0, 0.5], angular: [-0.5, 0.5] };
+        let stop = ActionConfig { linear: [0.0, 0.5], ..Default::default() };
         let task = |idle: f32| {
             let reward = RewardConfig { idle, ..Default::default() };
             TaskConfig { action: stop.clone(), reward, ..Default::default() }
@@ -1650,7 +1686,7 @@ mod tests {
         let spec = ScenarioSpec::load("heldout-static-corridor").unwrap();
         let robot = RobotSpec::load("jetbot").unwrap();
         let stop =
-            TaskConfig { action: ActionConfig { linear: [0.0, 0.5], angular: [-0.5, 0.5] }, ..Default::default() };
+            TaskConfig { action: ActionConfig { linear: [0.0, 0.5], ..Default::default() }, ..Default::default() };
         let article = EnvSetup::new(spec.clone(), robot.clone(), TaskConfig::default()).unwrap();
         let moved = article.with_task(stop.clone()).unwrap();
         assert_eq!(moved.task, stop);

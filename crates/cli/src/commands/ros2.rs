@@ -133,6 +133,13 @@ pub fn run(command: Command) -> Result<()> {
                     format!("{DEFAULT_POLICY_NAME} (built in)"),
                 ),
             };
+            if runner.needs_top_speed() && p.max_linear.is_none() {
+                let [lo, hi] = runner.contract().action.linear;
+                anyhow::bail!(
+                    "{policy}: its linear action is {lo}–{hi} of the robot's top speed: give the robot's top speed \
+                     as the max_linear parameter (`--ros-args -p max_linear:=0.22` for a TurtleBot3 Burger)"
+                );
+            }
             let c = runner.contract();
             eprintln!(
                 "rlnav_policy: {} ({} beams over [{:.2}, {:.2}] rad, every {:.3} s) on domain {domain}; {} -> {}",
