@@ -82,6 +82,30 @@ fn train_smoke_run_and_errors() {
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         assert!(err.contains(needle) && !err.contains("panicked"), "{args:?}: {err}");
     }
+    std::fs::remove_dir_all(&dir).ok();
+    // A policy whose speed is a share of the robot's top speed says so in its contract, and
+    // the ROS 2 node will not drive it without the robot's top speed.
+    let out = rlnav(&[
+        "train",
+        "--config",
+        "smoke",
+        "--out",
+        dir.to_str().unwrap(),
+        "--set",
+        "train.max_epochs=1",
+        "--set",
+        "task.action.linear=[0.2, 1.0]",
+        "--set",
+        "task.action.linear_relative=true",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let policy = dir.join("policy.onnx");
+    let out = rlnav(&["inspect", policy.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("linear_relative: true"));
+    let out = rlnav(&["ros2", "node", "--policy", policy.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("max_linear") && err.contains("top speed") && !err.contains("panicked"), "{err}");
     std::fs::remove_dir_all(dir).ok();
 }
 
