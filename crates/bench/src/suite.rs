@@ -337,41 +337,42 @@ pub fn run_suite_with(
         plan: b.task.plan.clone(),
         ..base.clone()
     });
-    // The scenes every controller gets, drawn from one compiled scenario: the one for the
-    // largest turning radius among the tasks, so that no controller starts closer to a wall
-    // than it can turn away from. Compiled per task, starts (and so episodes) would differ.
-    // A range in shares of the top speed turns widest on the fastest robot of the suite.
-    let top_speed = match robot {
-        Some(r) => RobotSpec::load(r)?.max_linear,
-        None => suite
-            .scenarios
-            .iter()
-            .map(|name| Ok(RobotSpec::load(&ScenarioSpec::load(name)?.robot)?.max_linear))
-            .collect::<Result<Vec<f32>, BenchError>>()?
-            .into_iter()
-            .fold(0.0, f32::max),
-    };
-    let mut scene_task = &base;
+    // The scenes every controller gets, each drawn from one compiled scenario: the one whose
+    // task needs the most room at the start (the largest turning radius on that scene's
+    // robot, for a range in shares of its top speed), so that no controller starts closer to
+    // a wall than it can turn away from. Compiled per task, starts (and so episodes) would
+    // differ.
+    let mut distinct: Vec<&TaskConfig> = vec![&base];
     for t in tasks.iter().chain(&batch_task) {
-        if t.turning_radius(top_speed) > scene_task.turning_radius(top_speed) {
-            scene_task = t;
+        if !distinct.contains(&t) {
+            distinct.push(t);
         }
     }
-    let scenes: Vec<(Arc<EnvSetup>, Option<BarnRef>)> =
-        suite_setups_scored(suite, robot, scene_task)?.into_iter().map(|(s, b)| (Arc::new(s), b)).collect();
-    let under = |t: &TaskConfig| -> Result<Vec<Arc<EnvSetup>>, BenchError> {
-        if t == scene_task {
-            return Ok(scenes.iter().map(|(s, _)| s.clone()).collect());
+    let compiled =
+        distinct.iter().map(|t| suite_setups_scored(suite, robot, t)).collect::<Result<Vec<_>, BenchError>>()?;
+    let barn_refs: Vec<Option<BarnRef>> = compiled[0].iter().map(|(_, b)| *b).collect();
+    // Scene by scene, each task's setup.
+    let mut by_scene: Vec<Vec<Option<EnvSetup>>> = barn_refs.iter().map(|_| Vec::new()).collect();
+    for per_task in compiled {
+        for (row, (s, _)) in by_scene.iter_mut().zip(per_task) {
+            row.push(Some(s));
         }
-        let own = suite_setups_scored(suite, robot, t)?;
-        own.into_iter().zip(&scenes).map(|((o, _), (s, _))| Ok(Arc::new(o.on_scenes_of(s)?))).collect()
-    };
-    let setups: Vec<(Arc<EnvSetup>, Option<BarnRef>)> =
-        under(&base)?.into_iter().zip(scenes.iter().map(|(_, b)| *b)).collect();
-    let mut own_setups: Vec<Vec<Arc<EnvSetup>>> = Vec::with_capacity(controllers.len());
-    for t in &tasks {
-        own_setups.push(if *t == base { setups.iter().map(|(s, _)| s.clone()).collect() } else { under(t)? });
     }
+    let mut resolved: Vec<Vec<Arc<EnvSetup>>> = vec![Vec::with_capacity(barn_refs.len()); distinct.len()];
+    for mut row in by_scene {
+        let room = |s: &Option<EnvSetup>| s.as_ref().map_or(0.0, |s| s.scenario.start_clearance());
+        let widest = (0..row.len()).fold(0, |w, i| if room(&row[i]) > room(&row[w]) { i } else { w });
+        let scene = Arc::new(row[widest].take().expect("each scene is compiled once per task"));
+        for (mine, s) in resolved.iter_mut().zip(row) {
+            mine.push(match s {
+                None => scene.clone(),
+                Some(s) => Arc::new(s.on_scenes_of(&scene)?),
+            });
+        }
+    }
+    let under = |t: &TaskConfig| resolved[distinct.iter().position(|d| *d == t).expect("every task is listed")].clone();
+    let setups: Vec<(Arc<EnvSetup>, Option<BarnRef>)> = under(&base).into_iter().zip(barn_refs).collect();
+    let own_setups: Vec<Vec<Arc<EnvSetup>>> = tasks.iter().map(under).collect();
     let mut warnings = Vec::new();
     for (c, mine) in controllers.iter().zip(&own_setups) {
         for setup in mine {
@@ -388,7 +389,7 @@ pub fn run_suite_with(
     // The batch policy's scenes under its own observation, action and control period.
     let mut batch_runs = match (&mut batch, &batch_task) {
         (Some(b), Some(t)) => {
-            let own = under(t)?;
+            let own = under(t);
             let runs = evaluate_batch(&own, episodes, seed, threads, b.policy).map_err(|e| bad(b.name, &e))?;
             runs.into_iter().map(Some).collect()
         }

@@ -303,9 +303,15 @@ impl PolicyRunner {
     }
 
     /// Tells the runner the robot's top speed (m/s), which a policy whose linear action is a
-    /// fraction of it needs; it changes nothing for one in m/s.
+    /// fraction of it needs; it changes nothing for one in m/s. A speed that is not a
+    /// positive number leaves such a policy without one: it stops the robot and says so.
     pub fn set_top_speed(&mut self, top_speed: f32) {
-        self.action = Some(self.contract.action.for_top_speed(top_speed));
+        let a = &self.contract.action;
+        self.action = if top_speed.is_finite() && top_speed > 0.0 {
+            Some(a.for_top_speed(top_speed))
+        } else {
+            (!a.linear_relative).then(|| a.clone())
+        };
     }
 
     /// Whether the policy needs the robot's top speed ([`Self::set_top_speed`]) and has none.

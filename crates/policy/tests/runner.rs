@@ -186,6 +186,11 @@ fn a_policy_in_shares_of_the_top_speed_needs_the_robot_and_then_drives_as_in_tra
     assert!(runner.needs_top_speed());
     assert_eq!(runner.act(&o), Twist::default());
     assert!(runner.fault().unwrap().contains("top speed"), "{:?}", runner.fault());
+    // Told nonsense: still none.
+    for v in [f32::NAN, -0.22, 0.0] {
+        runner.set_top_speed(v);
+        assert!(runner.needs_top_speed(), "{v}");
+    }
     // Told: the command is the simulator's for the same action, within the Burger's range.
     runner.set_top_speed(burger.max_linear);
     assert!(!runner.needs_top_speed());

@@ -24,7 +24,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let domain = 77;
     let runner = PolicyRunner::load(std::path::Path::new(policy), None)?;
     let goal = if with_plan { None } else { Some([30.0, 0.0]) };
-    let params = NodeParams { goal, trigger: Trigger::Scan, ..Default::default() };
+    // A policy whose speed is a share of the robot's top speed needs one; the contract's robot's
+    // stands in (rlnav ros2 node asks for it instead).
+    let max_linear = runner
+        .needs_top_speed()
+        .then(|| rlnav_sim::RobotSpec::load(&runner.contract().robot).map(|r| r.max_linear))
+        .transpose()?;
+    let params = NodeParams { goal, trigger: Trigger::Scan, max_linear, ..Default::default() };
     let stop = Arc::new(AtomicBool::new(false));
     let node_stop = stop.clone();
     let node = std::thread::spawn(move || {
