@@ -78,6 +78,12 @@ impl ActionConfig {
 pub struct RewardConfig {
     /// Weight of the progress term `d_{t-1} - d_t` (default 1).
     pub progress: f32,
+    /// Pay progress as if every robot's top speed were this (m/s, default 0: off): the
+    /// progress term is multiplied by `progress_reference_speed / max_linear` (the robot's
+    /// nominal top speed). A step at top speed then earns the same on a 0.22 m/s TurtleBot3
+    /// Burger as on a 0.5 m/s Jetbot, where in metres it earns the Burger less than half,
+    /// against the same social and proximity charges per step.
+    pub progress_reference_speed: f32,
     /// Proximity penalty weight (default 1): each control step while `r_min < proximity_range`,
     /// `-proximity` times the [`ProximityShape`]'s value.
     pub proximity: f32,
@@ -166,6 +172,7 @@ impl Default for RewardConfig {
     fn default() -> Self {
         Self {
             progress: 1.0,
+            progress_reference_speed: 0.0,
             proximity: 1.0,
             proximity_range: 0.5,
             proximity_shape: ProximityShape::Exp,
@@ -321,6 +328,7 @@ impl Validate for TaskConfig {
         ] {
             check_range(k, v, -1e4, 1e4)?;
         }
+        check_range("reward.progress_reference_speed", r.progress_reference_speed, 0.0, 20.0)?;
         check_range("reward.proximity_range", r.proximity_range, 0.0, 100.0)?;
         if r.proximity_shape == ProximityShape::Linear && r.proximity_range <= self.collision_range {
             return Err(Invalid::new(
@@ -985,7 +993,12 @@ impl NavEnv {
         // Progress towards the goal, along the plan when there is one.
         let (remaining, off_plan) = self.update_target();
         let rw = &task.reward;
-        let mut reward = rw.progress * (self.distance - remaining);
+        let progress_scale = if rw.progress_reference_speed > 0.0 {
+            rw.progress_reference_speed / self.setup.robot.max_linear
+        } else {
+            1.0
+        };
+        let mut reward = rw.progress * progress_scale * (self.distance - remaining);
         let here = self.drive.pose.position();
         if !self.crowd.is_empty() {
             self.min_person_gap = self.min_person_gap.min(self.crowd.min_gap(here, robot_radius));
@@ -1596,6 +1609,36 @@ mod tests {
         assert!((at(&mut env, -0.5, 1.0) - 1.0).abs() < 1e-6, "reversing away from it");
         env.ranges[0] = f32::INFINITY;
         assert!((at(&mut env, 0.5, 3.0) - 2.0).abs() < 1e-6, "a return abeam stays where it is");
+    }
+
+    #[test]
+    fn progress_paid_at_a_reference_speed_scales_with_the_robots_top_speed() {
+        let spec = ScenarioSpec::load("empty-room").unwrap();
+        let burger = RobotSpec::load("turtlebot3-burger").unwrap();
+        // Progress alone: the reward of a step is the progress term.
+        let env = |reference| {
+            let reward = RewardConfig { proximity: 0.0, progress_reference_speed: reference, ..Default::default() };
+            let task = TaskConfig { reward, ..Default::default() };
+            NavEnv::new(Arc::new(EnvSetup::new(spec.clone(), burger.clone(), task).unwrap()), 4).unwrap()
+        };
+        let (mut metres, mut paid) = (env(0.0), env(0.5));
+        let mut compared = 0;
+        for _ in 0..20 {
+            let (a, b) = (metres.step([1.0, 0.0]), paid.step([1.0, 0.0]));
+            if a.terminated || a.truncated {
+                break;
+            }
+            if a.reward.abs() > 1e-4 {
+                assert!((b.reward / a.reward - 0.5 / burger.max_linear).abs() < 1e-3, "{} {}", a.reward, b.reward);
+                compared += 1;
+            }
+        }
+        assert!(compared >= 5, "{compared} steps of progress compared");
+        let bad = TaskConfig {
+            reward: RewardConfig { progress_reference_speed: -1.0, ..Default::default() },
+            ..Default::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().key, "reward.progress_reference_speed");
     }
 
     #[test]
