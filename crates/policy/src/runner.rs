@@ -122,6 +122,15 @@ impl std::fmt::Debug for PolicyRunner {
     }
 }
 
+/// The action in m/s for a robot of `top_speed` (m/s): `None` for a range in shares of the top
+/// speed while none is known or it is not a positive number.
+fn resolved(action: &ActionContract, top_speed: Option<f32>) -> Option<ActionContract> {
+    match top_speed {
+        Some(v) if v.is_finite() && v > 0.0 => Some(action.for_top_speed(v)),
+        _ => (!action.linear_relative).then(|| action.clone()),
+    }
+}
+
 /// The graph's input and output names, in order.
 pub fn graph_io(proto: &pb::ModelProto) -> (Vec<String>, Vec<String>) {
     let g = proto.graph.as_ref();
@@ -271,7 +280,7 @@ impl PolicyRunner {
             adapter: None,
             last: Twist::default(),
             fault: None,
-            action: (!contract.action.linear_relative).then(|| contract.action.clone()),
+            action: resolved(&contract.action, None),
             nav_plan: None,
             plan_progress: 0,
             ahead: Vec::new(),
@@ -306,17 +315,21 @@ impl PolicyRunner {
     /// fraction of it needs; it changes nothing for one in m/s. A speed that is not a
     /// positive number leaves such a policy without one: it stops the robot and says so.
     pub fn set_top_speed(&mut self, top_speed: f32) {
-        let a = &self.contract.action;
-        self.action = if top_speed.is_finite() && top_speed > 0.0 {
-            Some(a.for_top_speed(top_speed))
-        } else {
-            (!a.linear_relative).then(|| a.clone())
-        };
+        self.action = resolved(&self.contract.action, Some(top_speed));
     }
 
     /// Whether the policy needs the robot's top speed ([`Self::set_top_speed`]) and has none.
     pub fn needs_top_speed(&self) -> bool {
         self.action.is_none()
+    }
+
+    /// [`PolicyError::NoTopSpeed`] while the policy needs the robot's top speed and has none.
+    pub fn check_top_speed(&self) -> Result<(), PolicyError> {
+        if self.action.is_some() {
+            return Ok(());
+        }
+        let [min, max] = self.contract.action.linear;
+        Err(PolicyError::NoTopSpeed { file: self.source.clone(), min, max })
     }
 
     /// Why the last [`Controller::act`] stopped the robot, if it did.
@@ -411,10 +424,7 @@ impl PolicyRunner {
 
     /// One control step: observation, inference, command; errors instead of stopping.
     pub fn try_act(&mut self, o: &RobotObservation) -> Result<Twist, PolicyError> {
-        if self.action.is_none() {
-            let [min, max] = self.contract.action.linear;
-            return Err(PolicyError::NoTopSpeed { file: self.source.clone(), min, max });
-        }
+        self.check_top_speed()?;
         self.build_observation(o)?;
         // This step's observation joins the history whatever the network makes of it: the
         // robot was there and saw it.

@@ -512,6 +512,14 @@ fn finite_pose(p: &msg::Pose) -> Option<Pose2> {
 }
 
 impl PolicyNode {
+    /// [`Self::new`], refusing a policy that needs the robot's top speed when `params` do not
+    /// give it (`max_linear`): what `rlnav ros2 node` starts.
+    pub fn try_new(runner: PolicyRunner, params: NodeParams) -> Result<Self, rlnav_policy::runner::PolicyError> {
+        let node = Self::new(runner, params);
+        node.runner.check_top_speed()?;
+        Ok(node)
+    }
+
     /// The node for `runner` with `params`.
     pub fn new(mut runner: PolicyRunner, params: NodeParams) -> Self {
         // Without it such a policy stops the robot at every tick, saying why.

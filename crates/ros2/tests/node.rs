@@ -5,6 +5,7 @@
 
 use proptest::prelude::*;
 use rlnav_policy::PolicyRunner;
+use rlnav_policy::contract::{ActionContract, ActionScaling, PolicyContract};
 use rlnav_ros2::msg::*;
 use rlnav_ros2::node::{NodeParams, NodeState, PolicyNode};
 use rlnav_sim::Twist as SimTwist;
@@ -478,20 +479,24 @@ fn a_flood_of_mixed_messages_keeps_memory_flat() {
     }
 }
 
+/// The contract of the article's 133-value layout (`contracts/article-mlp-133.yaml`) with
+/// `action` in place of its own, for echo models.
+fn article_133_with(action: ActionContract) -> PolicyContract {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts/article-mlp-133.yaml");
+    PolicyContract { action, ..PolicyContract::from_file(std::path::Path::new(path)).unwrap() }
+}
+
 /// The article's 133-value layout through the node: odometry's lateral velocity reaches its
 /// place in the observation, the goal bearing history follows the ticks, and a new goal starts
 /// a new history (the runner is reset).
 #[test]
 fn odometry_and_goals_feed_the_articles_133_layout() {
-    use rlnav_policy::contract::{ActionContract, ActionScaling, PolicyContract};
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts/article-mlp-133.yaml");
-    let mut contract = PolicyContract::from_file(std::path::Path::new(path)).unwrap();
-    contract.action = ActionContract {
+    let contract = article_133_with(ActionContract {
         scaling: ActionScaling::Direct,
         linear: [-9.0, 9.0],
         angular: [-9.0, 9.0],
         linear_relative: false,
-    };
+    });
     // mu = [lateral velocity (value 131), the oldest goal bearing of five (value 120)].
     let proto = rlnav_policy::export::echo_model(133, [131, 120], &contract.io).unwrap();
     let runner = PolicyRunner::from_proto("echo.onnx", &proto, contract).unwrap();
@@ -529,15 +534,12 @@ fn odometry_and_goals_feed_the_articles_133_layout() {
 /// `max_linear`; without it the node stops the robot and says what it needs.
 #[test]
 fn a_policy_in_shares_of_the_top_speed_takes_it_from_max_linear() {
-    use rlnav_policy::contract::{ActionContract, ActionScaling, PolicyContract};
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../contracts/article-mlp-133.yaml");
-    let mut contract = PolicyContract::from_file(std::path::Path::new(path)).unwrap();
-    contract.action = ActionContract {
+    let contract = article_133_with(ActionContract {
         scaling: ActionScaling::Normalized,
         linear: [0.0, 1.0],
         angular: [-0.5, 0.5],
         linear_relative: true,
-    };
+    });
     // mu[0] is the lateral velocity (value 131): 0.5 asks for three quarters of the top speed.
     let proto = rlnav_policy::export::echo_model(133, [131, 120], &contract.io).unwrap();
     for (max_linear, want) in [(None, 0.0), (Some(0.22), 0.75 * 0.22), (Some(0.5), 0.75 * 0.5)] {
@@ -552,6 +554,13 @@ fn a_policy_in_shares_of_the_top_speed_takes_it_from_max_linear() {
         assert!((c.linear - want).abs() < 1e-6, "max_linear {max_linear:?}: {c:?}");
         if max_linear.is_none() {
             assert!(matches!(n.state(), NodeState::Stopped(why) if why.contains("max_linear")), "{}", n.state());
+        }
+        // What `rlnav ros2 node` starts: refused without the top speed, with it started.
+        let runner = PolicyRunner::from_proto("echo.onnx", &proto, contract.clone()).unwrap();
+        let started = PolicyNode::try_new(runner, NodeParams { max_linear, ..NodeParams::default() });
+        match &started {
+            Err(e) => assert!(max_linear.is_none() && e.to_string().contains("max_linear"), "{e}"),
+            Ok(_) => assert!(max_linear.is_some()),
         }
     }
 }

@@ -133,15 +133,8 @@ pub fn run(command: Command) -> Result<()> {
                     format!("{DEFAULT_POLICY_NAME} (built in)"),
                 ),
             };
-            if runner.needs_top_speed() && p.max_linear.is_none() {
-                let [lo, hi] = runner.contract().action.linear;
-                anyhow::bail!(
-                    "{policy}: its linear action is {lo}–{hi} of the robot's top speed: give the robot's top speed \
-                     as the max_linear parameter (`--ros-args -p max_linear:=0.22` for a TurtleBot3 Burger)"
-                );
-            }
             let c = runner.contract();
-            eprintln!(
+            let started = format!(
                 "rlnav_policy: {} ({} beams over [{:.2}, {:.2}] rad, every {:.3} s) on domain {domain}; {} -> {}",
                 policy,
                 c.scan.beams,
@@ -151,10 +144,13 @@ pub fn run(command: Command) -> Result<()> {
                 p.topic(&p.scan_topic),
                 p.topic(&p.cmd_vel_topic)
             );
-            if p.follow_path {
-                eprintln!("rlnav_policy: serving nav2_msgs/action/FollowPath as {}", p.topic(&p.follow_path_action));
+            let serving = p.follow_path.then(|| p.topic(&p.follow_path_action));
+            // Refused before anything is said to be running (a policy that needs max_linear).
+            let node = PolicyNode::try_new(runner, p)?;
+            eprintln!("{started}");
+            if let Some(action) = serving {
+                eprintln!("rlnav_policy: serving nav2_msgs/action/FollowPath as {action}");
             }
-            let node = PolicyNode::new(runner, p);
             run_node(node, domain, reach, stop_flag()?, |_, _| {})?;
             Ok(())
         }
