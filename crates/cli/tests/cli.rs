@@ -62,6 +62,8 @@ fn train_smoke_run_and_errors() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("2 epochs, 1024 env steps"), "{text}");
+    // The evaluation's line reaches a log that is not a terminal (the progress bar is hidden).
+    assert!(text.contains("|      1024 steps |") && text.contains("eval on empty-room: success"), "{text}");
     assert!(text.contains("policy on empty-room (20 episodes"), "{text}");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();

@@ -277,6 +277,12 @@ pub struct StageConfig {
 pub struct EvalConfig {
     /// Scenario (with a generator, every episode is a new scene).
     pub scenario: String,
+    /// More scenarios evaluated beside `scenario`, shared out as in training
+    /// ([`RunConfig::mix`]): with `n` robots, environment `i` drives robot `i % n` in scenario
+    /// `(i / n) % (1 + mix.len())`. One success rate pools them, so that the checkpoint chosen
+    /// on this evaluation (`select: scenario`) is good on unseen scenes of every training
+    /// world, not of the first alone. `envs` a multiple of the pairs gives each an equal share.
+    pub mix: Vec<String>,
     /// Episodes per evaluation.
     pub episodes: usize,
     /// Environments evaluated in parallel (divides `episodes`).
@@ -319,6 +325,7 @@ impl Default for EvalConfig {
     fn default() -> Self {
         Self {
             scenario: "random-static".into(),
+            mix: Vec::new(),
             episodes: 200,
             envs: 50,
             every: 20,

@@ -136,7 +136,7 @@ pub struct Summary {
     pub final_epoch: usize,
     /// The periodic evaluation after the last epoch (on the selection seed).
     pub last_epoch_eval: Option<EvalSummary>,
-    /// Scenario of the final evaluation.
+    /// Scenario of the final evaluation (`eval.scenario`, with `eval.mix` after ` + `).
     pub eval_scenario: String,
     /// Best success rate of the evaluation that selects checkpoints (`eval.select`).
     pub best_success_rate: f32,
@@ -232,6 +232,21 @@ fn setups_for(
             }))
         })
         .collect()
+}
+
+/// The evaluation's setups: `eval.scenario`, then `eval.mix`, each for every robot (the
+/// order [`stage_setup`] gives a stage's, so that environments share them out alike).
+fn eval_setups(cfg: &RunConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
+    let mut setups = Vec::new();
+    for scenario in std::iter::once(&cfg.eval.scenario).chain(&cfg.eval.mix) {
+        setups.extend(env_setup(cfg, scenario, cfg.task.clone(), None)?);
+    }
+    Ok(setups)
+}
+
+/// What the evaluation runs on, for logs: `eval.scenario`, and `eval.mix` joined by ` + `.
+pub fn eval_scenarios(cfg: &RunConfig) -> String {
+    std::iter::once(&cfg.eval.scenario).chain(&cfg.eval.mix).map(String::as_str).collect::<Vec<_>>().join(" + ")
 }
 
 /// A training stage's setups, with difficulty levels under an automatic curriculum: each of
@@ -550,7 +565,7 @@ pub fn train(
             ),
         }));
     }
-    let eval = env_setup(cfg, &cfg.eval.scenario, cfg.task.clone(), None)?;
+    let eval = eval_setups(cfg)?;
     let mut heldout = Vec::new();
     for name in &cfg.eval.heldout {
         for spec in rlnav_sim::barn::load_scenarios(name)? {
@@ -813,7 +828,7 @@ pub fn train(
         final_eval,
         final_epoch,
         last_epoch_eval: if interrupted { None } else { last_eval },
-        eval_scenario: cfg.eval.scenario.clone(),
+        eval_scenario: eval_scenarios(cfg),
         best_success_rate: st.best_success_rate.max(0.0),
         best_epoch: st.best_epoch,
         first_90: st.first_90,
@@ -856,7 +871,7 @@ pub struct RunEvaluation {
     pub episodes: Vec<EpisodeStats>,
 }
 
-/// Evaluates a run's final checkpoint on `scenario` (default: the run's evaluation scenario)
+/// Evaluates a run's final checkpoint on `scenario` (default: the run's evaluation scenarios)
 /// with the run's robot and task: `episodes` episodes, `envs` at a time; `progress` hears the
 /// count of finished episodes.
 pub fn evaluate_run(
@@ -868,8 +883,10 @@ pub fn evaluate_run(
     progress: &dyn Fn(usize),
 ) -> Result<RunEvaluation, TrainError> {
     let (cfg, ppo) = load_learner(dir, "checkpoint")?;
-    let scenario = scenario.unwrap_or(&cfg.eval.scenario).to_string();
-    let setup = env_setup(&cfg, &scenario, cfg.task.clone(), None)?;
+    let (scenario, setup) = match scenario {
+        Some(s) => (s.to_string(), env_setup(&cfg, s, cfg.task.clone(), None)?),
+        None => (eval_scenarios(&cfg), eval_setups(&cfg)?),
+    };
     let envs = envs.clamp(1, episodes.max(1));
     let episodes = episodes / envs * envs;
     let (summary, episodes) = evaluate(&ppo, &setup, episodes, envs, seed, cfg.train.threads, &mut |n| progress(n))?;
@@ -902,6 +919,30 @@ mod tests {
         // A mixed scenario that does not load is named.
         cfg.mix = vec!["no-such-room".into()];
         let e = stage_setup(&cfg, &stages(&cfg)[0]).unwrap_err().to_string();
+        assert!(e.contains("no-such-room"), "{e}");
+    }
+
+    #[test]
+    fn the_evaluation_shares_its_scenarios_out_as_training_does() {
+        let mut cfg = RunConfig { robots: vec!["jetbot".into(), "turtlebot3-burger".into()], ..Default::default() };
+        cfg.eval.scenario = "random-static".into();
+        let names = |setups: Vec<Arc<EnvSetup>>| -> Vec<(String, String)> {
+            setups.iter().map(|s| (s.scenario.spec().name.clone(), s.robot.name.clone())).collect()
+        };
+        // Without a mix, the evaluation scenario for every robot, as before.
+        assert_eq!(names(eval_setups(&cfg).unwrap()).len(), 2);
+        assert_eq!(eval_scenarios(&cfg), "random-static");
+        cfg.eval.mix = vec!["empty-room".into()];
+        let want = [
+            ("random-static", "jetbot"),
+            ("random-static", "turtlebot3-burger"),
+            ("empty-room", "jetbot"),
+            ("empty-room", "turtlebot3-burger"),
+        ];
+        assert_eq!(names(eval_setups(&cfg).unwrap()), want.map(|(s, r)| (s.to_string(), r.to_string())));
+        assert_eq!(eval_scenarios(&cfg), "random-static + empty-room");
+        cfg.eval.mix = vec!["no-such-room".into()];
+        let e = eval_setups(&cfg).unwrap_err().to_string();
         assert!(e.contains("no-such-room"), "{e}");
     }
 }

@@ -21,7 +21,8 @@ pub struct Args {
     /// scenario's).
     #[arg(long, requires = "policy")]
     robot: Option<String>,
-    /// Scenario: a shipped name or a YAML file.
+    /// Scenario: a shipped name or a YAML file (default for --run: the run's evaluation
+    /// scenarios, `eval.scenario` and `eval.mix`).
     #[arg(long)]
     scenario: Option<String>,
     /// Worker threads for --policy.

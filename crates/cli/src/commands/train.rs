@@ -80,6 +80,10 @@ pub fn run(a: Args) -> Result<()> {
         out.display()
     );
     let bar = progress_bar(cfg.train.max_epochs as u64, "epochs");
+    let eval_on = rlnav_train::run::eval_scenarios(&cfg);
+    // `suspend`, not `println`: a hidden bar (output to a file or pipe, as under nohup) drops
+    // what `println` gives it, and the evaluations are what a log of a run is read for.
+    let line = |text: String| bar.suspend(|| println!("{text}"));
     let opts = TrainOptions { out: out.clone(), resume: resuming, stop };
     let summary = rlnav_train::train(&cfg, &opts, &mut |r| {
         bar.set_position(r.epoch as u64);
@@ -91,19 +95,19 @@ pub fn run(a: Args) -> Result<()> {
             r.stage_name
         ));
         if let Some(e) = &r.eval {
-            bar.println(format!(
+            line(format!(
                 "epoch {:>5} | {:>9} steps | {:>6.1} s | eval on {}: success {:.1}% collision {:.1}% timeout {:.1}%",
                 r.epoch,
                 r.env_steps,
                 r.wall_s,
-                cfg.eval.scenario,
+                eval_on,
                 100.0 * e.success_rate,
                 100.0 * e.collision_rate,
                 100.0 * e.timeout_rate
             ));
         }
         if let Some(e) = &r.heldout {
-            bar.println(format!(
+            line(format!(
                 "                held-out rooms ({} scenes): success {:.1}% collision {:.1}%",
                 cfg.eval.heldout.len(),
                 100.0 * e.success_rate,
