@@ -237,9 +237,19 @@ fn setups_for(
 /// The evaluation's setups: `eval.scenario`, then `eval.mix`, each for every robot (the
 /// order [`stage_setup`] gives a stage's, so that environments share them out alike).
 fn eval_setups(cfg: &RunConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
+    scenarios_setups(cfg, std::iter::once(&cfg.eval.scenario).chain(&cfg.eval.mix), &cfg.task, None)
+}
+
+/// Every robot's setup for each of `scenarios` in turn (scenario-major).
+fn scenarios_setups<'a>(
+    cfg: &RunConfig,
+    scenarios: impl IntoIterator<Item = &'a String>,
+    task: &TaskConfig,
+    levels: Option<usize>,
+) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
     let mut setups = Vec::new();
-    for scenario in std::iter::once(&cfg.eval.scenario).chain(&cfg.eval.mix) {
-        setups.extend(env_setup(cfg, scenario, cfg.task.clone(), None)?);
+    for scenario in scenarios {
+        setups.extend(env_setup(cfg, scenario, task.clone(), levels)?);
     }
     Ok(setups)
 }
@@ -256,11 +266,7 @@ pub fn eval_scenarios(cfg: &RunConfig) -> String {
 fn stage_setup(cfg: &RunConfig, stage: &StageConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
     let task = apply_task_overrides(&cfg.task, &stage.task, &stage.name)?;
     let levels = cfg.auto_curriculum.as_ref().map(|a| a.levels);
-    let mut setups = Vec::new();
-    for scenario in std::iter::once(&stage.scenario).chain(&stage.mix) {
-        setups.extend(env_setup(cfg, scenario, task.clone(), levels)?);
-    }
-    Ok(setups)
+    scenarios_setups(cfg, std::iter::once(&stage.scenario).chain(&stage.mix), &task, levels)
 }
 
 /// The one observation mirror of every stage's setups (`train.mirror`): each robot's scan must
