@@ -321,6 +321,13 @@ pub enum Selection {
     Last,
 }
 
+impl EvalConfig {
+    /// The scenarios evaluated: `scenario`, then `mix`.
+    pub fn scenarios(&self) -> impl Iterator<Item = &String> {
+        std::iter::once(&self.scenario).chain(&self.mix)
+    }
+}
+
 impl Default for EvalConfig {
     fn default() -> Self {
         Self {

@@ -237,7 +237,7 @@ fn setups_for(
 /// The evaluation's setups: `eval.scenario`, then `eval.mix`, each for every robot (the
 /// order [`stage_setup`] gives a stage's, so that environments share them out alike).
 fn eval_setups(cfg: &RunConfig) -> Result<Vec<Arc<EnvSetup>>, TrainError> {
-    scenarios_setups(cfg, std::iter::once(&cfg.eval.scenario).chain(&cfg.eval.mix), &cfg.task, None)
+    scenarios_setups(cfg, cfg.eval.scenarios(), &cfg.task, None)
 }
 
 /// Every robot's setup for each of `scenarios` in turn (scenario-major).
@@ -256,7 +256,7 @@ fn scenarios_setups<'a>(
 
 /// What the evaluation runs on, for logs: `eval.scenario`, and `eval.mix` joined by ` + `.
 pub fn eval_scenarios(cfg: &RunConfig) -> String {
-    std::iter::once(&cfg.eval.scenario).chain(&cfg.eval.mix).map(String::as_str).collect::<Vec<_>>().join(" + ")
+    cfg.eval.scenarios().map(String::as_str).collect::<Vec<_>>().join(" + ")
 }
 
 /// A training stage's setups, with difficulty levels under an automatic curriculum: each of
