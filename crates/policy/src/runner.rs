@@ -406,6 +406,7 @@ impl PolicyRunner {
         }
         let inputs = ObservationInputs {
             ranges: &self.scan,
+            angle_increment: self.contract.scan.lidar_spec().angle_increment(),
             goal_distance,
             goal_bearing,
             last_command: self.last,

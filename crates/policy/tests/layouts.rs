@@ -194,7 +194,7 @@ fn the_simulator_and_the_runner_agree_on_the_path_ahead() {
     for (scenario, plan) in [("heldout-static-u-trap", true), ("random-static", false)] {
         let mut c = PolicyContract::from_file(&contract_path("article-mlp-133.yaml")).unwrap();
         c.observation = rlnav_sim::ObservationLayout(vec![
-            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
+            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.0 },
             ObsTerm::GoalDistance,
             ObsTerm::GoalBearing,
             ObsTerm::PlanAhead { points: 4, spacing: 0.3 },

@@ -247,7 +247,7 @@ fn models_that_do_not_fit_their_contract_fail_at_load() {
     let mut short = contract(GraphIo::default());
     use rlnav_sim::task::ObsTerm;
     short.observation = ObservationLayout(vec![
-        ObsTerm::Lidar { beams: 60, clip: [0.15, 2.0] },
+        ObsTerm::Lidar { beams: 60, clip: [0.15, 2.0], sweep: 0.0 },
         ObsTerm::GoalDistance,
         ObsTerm::GoalBearing,
         ObsTerm::LastLinear,

@@ -242,7 +242,8 @@ fn term_bounds(term: &ObsTerm, task: &rlnav_sim::TaskConfig, low: &mut Vec<f32>,
         high.extend(std::iter::repeat_n(hi, n));
     };
     match term {
-        ObsTerm::Lidar { beams, clip } => push(clip[0], clip[1], *beams),
+        // Free travel reads 0 with a return inside the swept disc.
+        ObsTerm::Lidar { beams, clip, sweep } => push(if *sweep > 0.0 { 0.0 } else { clip[0] }, clip[1], *beams),
         ObsTerm::GoalBearing => push(-std::f32::consts::PI, std::f32::consts::PI, 1),
         ObsTerm::GoalDistance => push(0.0, f32::INFINITY, 1),
         // An episode starts with the zero command, which may lie outside the action's range.

@@ -26,11 +26,20 @@ pub const MAX_PLAN_POINTS: usize = 64;
 pub enum ObsTerm {
     /// Lidar ranges, min-pooled from the scan's beams down to `beams` (which must divide the
     /// scan's beam count), clipped to `clip`; a beam with no return reads `clip[1]`.
+    ///
+    /// With `sweep` > 0 each bin reads instead how far a disc of radius `sweep` round the
+    /// scanner could travel straight along the bin's bearing before a return of the (pooled,
+    /// clipped) scan falls inside it: the free travel per bearing, in `[0, clip[1]]`. A thin
+    /// post then blocks every bearing the disc would brush it on (±30° at 0.5 m for 0.25 m),
+    /// where its plain range fills one bin against a wall's dozens.
     Lidar {
         /// Values after pooling.
         beams: usize,
         /// `[min, max]` (m).
         clip: [f32; 2],
+        /// Radius of the swept disc (m; default 0: the plain ranges).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        sweep: f32,
     },
     /// Distance to the goal (m).
     GoalDistance,
@@ -76,6 +85,10 @@ pub enum ObsTerm {
         #[serde(default)]
         fill: HistoryFill,
     },
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
 }
 
 fn one() -> usize {
@@ -127,7 +140,7 @@ impl ObsTerm {
     /// The lidar term's `(beams, clip)`, also when it is the term of a history.
     pub fn lidar(&self) -> Option<(usize, [f32; 2])> {
         match self {
-            ObsTerm::Lidar { beams, clip } => Some((*beams, *clip)),
+            ObsTerm::Lidar { beams, clip, .. } => Some((*beams, *clip)),
             ObsTerm::History { term, .. } => term.lidar(),
             _ => None,
         }
@@ -153,7 +166,10 @@ impl ObsTerm {
     /// oldest first`).
     pub fn describe(&self) -> String {
         match self {
-            ObsTerm::Lidar { beams, clip } => format!("lidar {beams} beams, clip [{}, {}]", clip[0], clip[1]),
+            ObsTerm::Lidar { beams, clip, sweep } if *sweep > 0.0 => {
+                format!("lidar {beams} beams, clip [{}, {}], free travel of a {sweep} m disc", clip[0], clip[1])
+            }
+            ObsTerm::Lidar { beams, clip, .. } => format!("lidar {beams} beams, clip [{}, {}]", clip[0], clip[1]),
             ObsTerm::PlanAhead { points, spacing } => format!("plan_ahead {points} points, {spacing} m apart"),
             ObsTerm::History { term, steps, stride, order, fill } => format!(
                 "{} × {steps}{}, {}, before the episode: {}",
@@ -175,9 +191,15 @@ impl ObsTerm {
     /// Checks the term; `key` names it in errors (`observation[3]`).
     fn check(&self, key: &str) -> Result<(), Invalid> {
         match self {
-            ObsTerm::Lidar { beams, clip } => {
+            ObsTerm::Lidar { beams, clip, sweep } => {
                 if *beams == 0 {
                     return Err(Invalid::new(format!("{key}.lidar.beams"), "at least 1"));
+                }
+                if !(sweep.is_finite() && (0.0..=10.0).contains(sweep)) {
+                    return Err(Invalid::new(
+                        format!("{key}.lidar.sweep"),
+                        format!("a radius in [0, 10] m (0: plain ranges), got {sweep}"),
+                    ));
                 }
                 check_interval(&format!("{key}.lidar.clip"), *clip, 0.0, 1000.0)
             }
@@ -228,7 +250,7 @@ impl Default for ObservationLayout {
     /// The article's `[L_t (120 ranges, 0.15-3 m), d_t, θ_t, v_{t-1}, ω_{t-1}]`: 124 values.
     fn default() -> Self {
         ObservationLayout(vec![
-            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
+            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.0 },
             ObsTerm::GoalDistance,
             ObsTerm::GoalBearing,
             ObsTerm::LastLinear,
@@ -463,6 +485,9 @@ pub struct ObservationInputs<'a> {
     /// The scan, counter-clockwise from the layout's first beam; its length must be a
     /// multiple of every lidar term's beams. `+inf` is no return.
     pub ranges: &'a [f32],
+    /// Angle between two beams (rad, `LaserScan.angle_increment`; its sign does not matter):
+    /// a swept lidar term (`sweep` > 0) needs it.
+    pub angle_increment: f32,
     /// Goal distance (m).
     pub goal_distance: f32,
     /// Goal bearing in the robot frame (rad).
@@ -539,6 +564,7 @@ impl Stack {
 pub struct ObservationBuilder {
     layout: ObservationLayout,
     pooled: Vec<f32>,
+    sweep: SweepTable,
     /// One per history term, in layout order.
     stacks: Vec<Stack>,
     /// Whether the current step's observation was written since the last commit or reset.
@@ -565,7 +591,14 @@ impl ObservationBuilder {
                 _ => None,
             })
             .collect();
-        Self { layout: layout.clone(), pooled: vec![0.0; layout.max_lidar_beams()], stacks, written: false }
+        let beams = layout.max_lidar_beams();
+        Self {
+            layout: layout.clone(),
+            pooled: vec![0.0; beams],
+            sweep: SweepTable { bin_width: f32::NAN, cos_sin: Vec::with_capacity(beams) },
+            stacks,
+            written: false,
+        }
     }
 
     /// The layout.
@@ -608,7 +641,7 @@ impl ObservationBuilder {
     /// randomisation; `|| 0.0` for none). Writing again before a commit replaces the current
     /// step's values.
     pub fn write(&mut self, inputs: &ObservationInputs, out: &mut [f32], mut lidar_noise: impl FnMut() -> f32) {
-        let Self { layout, pooled, stacks, written } = self;
+        let Self { layout, pooled, sweep, stacks, written } = self;
         let mut k = 0;
         let mut h = 0;
         for term in &layout.0 {
@@ -617,7 +650,7 @@ impl ObservationBuilder {
             if let ObsTerm::History { term, .. } = term {
                 let s = &mut stacks[h];
                 h += 1;
-                write_term(term, inputs, pooled, &mut s.newest, &mut lidar_noise);
+                write_term(term, inputs, pooled, sweep, &mut s.newest, &mut lidar_noise);
                 let w = s.width;
                 for step in 0..s.steps {
                     let slot = match s.order {
@@ -631,7 +664,7 @@ impl ObservationBuilder {
                     }
                 }
             } else {
-                write_term(term, inputs, pooled, dst, &mut lidar_noise);
+                write_term(term, inputs, pooled, sweep, dst, &mut lidar_noise);
             }
             k += n;
         }
@@ -644,16 +677,27 @@ fn write_term(
     term: &ObsTerm,
     inputs: &ObservationInputs,
     pooled: &mut [f32],
+    sweep_table: &mut SweepTable,
     out: &mut [f32],
     lidar_noise: &mut impl FnMut() -> f32,
 ) {
     match term {
-        ObsTerm::Lidar { beams, clip } => {
+        ObsTerm::Lidar { beams, clip, sweep } => {
             let pooled = &mut pooled[..*beams];
             min_pool(inputs.ranges, pooled);
-            for (o, r) in out.iter_mut().zip(pooled.iter()) {
+            for r in pooled.iter_mut() {
                 // +inf (no return) clips to the far end.
-                *o = (r.min(clip[1]) + lidar_noise()).clamp(clip[0], clip[1]);
+                *r = (r.min(clip[1]) + lidar_noise()).clamp(clip[0], clip[1]);
+            }
+            if *sweep > 0.0 {
+                let group = inputs.ranges.len() / beams;
+                let inc = inputs.angle_increment.abs();
+                let bin_width = group as f32 * inc;
+                let full = (inputs.ranges.len() as f32 * inc - std::f32::consts::TAU).abs() < 0.5 * inc;
+                sweep_table.fit(bin_width, *beams);
+                free_travel(pooled, clip[1], *sweep, full, &sweep_table.cos_sin, out);
+            } else {
+                out.copy_from_slice(pooled);
             }
         }
         ObsTerm::GoalDistance => out[0] = inputs.goal_distance,
@@ -675,6 +719,76 @@ fn write_term(
     }
 }
 
+/// `cos` and `sin` of whole multiples of a swept lidar term's bin width, kept between writes
+/// (the width changes only with the scanner).
+#[derive(Clone, Debug)]
+struct SweepTable {
+    /// The bin width the table is for (rad; NaN before the first swept write).
+    bin_width: f32,
+    /// `(cos mw, sin mw)` for `m = 0, 1, ...`.
+    cos_sin: Vec<(f32, f32)>,
+}
+
+impl SweepTable {
+    /// Makes the table hold `beams` multiples of `bin_width` (allocates nothing once the
+    /// builder's capacity holds them).
+    fn fit(&mut self, bin_width: f32, beams: usize) {
+        if self.bin_width == bin_width && self.cos_sin.len() >= beams {
+            return;
+        }
+        self.bin_width = bin_width;
+        self.cos_sin.clear();
+        self.cos_sin.extend((0..beams).map(|m| {
+            let (s, c) = (m as f32 * bin_width).sin_cos();
+            (c, s)
+        }));
+    }
+}
+
+/// The free travel per bin of a scan `ranges` (equal bins, `cos_sin` holding their angular
+/// offsets; `full`: the bins go round the whole turn) for a disc of `radius` round the
+/// scanner, written to `out`: for bearing `θ`, the distance the disc moves along `θ` before a
+/// return falls inside it, capped at `far`. Ranges at `far` or beyond are no return.
+///
+/// A return at range `d` and angle `Δ` off the bearing is met when the disc's centre has
+/// travelled `d cos Δ − sqrt(r² − d² sin² Δ)`, if `d |sin Δ| < r` and it lies ahead.
+fn free_travel(ranges: &[f32], far: f32, radius: f32, full: bool, cos_sin: &[(f32, f32)], out: &mut [f32]) {
+    let n = ranges.len();
+    out.fill(far);
+    let r2 = radius * radius;
+    for (k, &d) in ranges.iter().enumerate() {
+        if d >= far {
+            continue;
+        }
+        if d <= radius {
+            // A return inside the disc already: no bearing is free.
+            out.fill(0.0);
+            return;
+        }
+        let reach = if full { n / 2 } else { n - 1 };
+        for (m, &(c, s)) in cos_sin.iter().enumerate().take(reach + 1) {
+            let lateral = d * s;
+            // Past a right angle, or wide enough to clear it: so are all larger offsets.
+            if c <= 0.0 || lateral >= radius {
+                break;
+            }
+            let t = (d * c - (r2 - lateral * lateral).sqrt()).max(0.0);
+            let mut meet = |j: usize| out[j] = out[j].min(t);
+            if full {
+                meet((k + m) % n);
+                meet((k + n - m) % n);
+            } else {
+                if k + m < n {
+                    meet(k + m);
+                }
+                if m <= k {
+                    meet(k - m);
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -684,6 +798,7 @@ mod tests {
     fn inputs(ranges: &[f32], d: f32, b: f32) -> ObservationInputs<'_> {
         ObservationInputs {
             ranges,
+            angle_increment: std::f32::consts::TAU / ranges.len() as f32,
             goal_distance: d,
             goal_bearing: b,
             last_command: Twist::new(0.3, -0.2),
@@ -728,6 +843,7 @@ mod tests {
                 let plan_m: Vec<Vec2> = plan.iter().map(|p| Vec2::new(p.x, -p.y)).collect();
                 let ia = ObservationInputs {
                     ranges: &ra,
+                    angle_increment: spec.angle_increment(),
                     goal_distance: 2.0 + t,
                     goal_bearing: 0.4 - 0.2 * t,
                     last_command: Twist::new(0.3, 0.1 * t - 0.2),
@@ -830,7 +946,7 @@ mod tests {
     #[test]
     fn plain_terms_are_written_in_layout_order() {
         let layout = ObservationLayout(vec![
-            ObsTerm::Lidar { beams: 2, clip: [0.2, 1.5] },
+            ObsTerm::Lidar { beams: 2, clip: [0.2, 1.5], sweep: 0.0 },
             ObsTerm::GoalDistance,
             ObsTerm::GoalBearing,
             ObsTerm::LastLinear,
@@ -850,7 +966,12 @@ mod tests {
         let layout = ObservationLayout(vec![
             history(ObsTerm::GoalBearing, 4, HistoryOrder::OldestFirst, HistoryFill::First),
             history(ObsTerm::GoalDistance, 3, HistoryOrder::NewestFirst, HistoryFill::Zero),
-            history(ObsTerm::Lidar { beams: 2, clip: [0.0, 10.0] }, 2, HistoryOrder::OldestFirst, HistoryFill::First),
+            history(
+                ObsTerm::Lidar { beams: 2, clip: [0.0, 10.0], sweep: 0.0 },
+                2,
+                HistoryOrder::OldestFirst,
+                HistoryFill::First,
+            ),
         ]);
         let mut b = ObservationBuilder::new(&layout);
         assert!(b.has_history());
@@ -922,11 +1043,103 @@ mod tests {
 
     #[test]
     fn lidar_noise_is_added_before_clipping() {
-        let layout = ObservationLayout(vec![ObsTerm::Lidar { beams: 3, clip: [0.5, 2.0] }]);
+        let layout = ObservationLayout(vec![ObsTerm::Lidar { beams: 3, clip: [0.5, 2.0], sweep: 0.0 }]);
         let mut b = ObservationBuilder::new(&layout);
         let mut out = vec![0.0; 3];
         let mut noise = [0.25, -1.0, 1.0].into_iter();
         b.write(&inputs(&[1.0, 1.0, 1.0], 0.0, 0.0), &mut out, || noise.next().unwrap());
         assert_eq!(out, vec![1.25, 0.5, 2.0]);
+    }
+
+    /// Free travel by brute force: every return a point, every bearing a direction, the
+    /// disc's centre moved along it until the point is within the radius.
+    fn free_travel_brute(ranges: &[f32], bearing: impl Fn(usize) -> f32, far: f32, radius: f32) -> Vec<f32> {
+        let points: Vec<Vec2> = ranges
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| **d < far)
+            .map(|(k, d)| Vec2::new(d * bearing(k).cos(), d * bearing(k).sin()))
+            .collect();
+        (0..ranges.len())
+            .map(|j| {
+                let u = Vec2::new(bearing(j).cos(), bearing(j).sin());
+                points.iter().fold(far, |best, p| {
+                    let along = p.x * u.x + p.y * u.y;
+                    let lateral = (p.x * u.y - p.y * u.x).abs();
+                    if p.x.hypot(p.y) <= radius {
+                        0.0
+                    } else if along > 0.0 && lateral < radius {
+                        best.min((along - (radius * radius - lateral * lateral).sqrt()).max(0.0))
+                    } else {
+                        best
+                    }
+                })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_swept_scan_is_the_free_travel_of_the_disc() {
+        let term = |sweep: f32| ObservationLayout(vec![ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep }]);
+        // A 360-beam full turn: one post 0.52 m ahead (beams 180-182 of -π + k·1°: bin 60).
+        let mut ranges = vec![f32::INFINITY; 360];
+        ranges[180..183].fill(0.52);
+        let mut b = ObservationBuilder::new(&term(0.25));
+        let mut out = vec![0.0; 120];
+        b.write(&inputs(&ranges, 1.0, 0.0), &mut out, || 0.0);
+        // The disc touches it after 0.27 m.
+        assert!((out[60] - 0.27).abs() < 1e-5, "{}", out[60]);
+        // It blocks the bearings within asin(0.25 / 0.52) = 28.7° (9 bins of 3°), none beyond.
+        assert!(out[51..=69].iter().all(|&t| t < 0.52), "{:?}", &out[48..73]);
+        assert!(out[..51].iter().chain(&out[70..]).all(|&t| t == 3.0), "{:?}", &out[48..73]);
+        // Plain, the post fills one bin.
+        let mut plain = ObservationBuilder::new(&term(0.0));
+        plain.write(&inputs(&ranges, 1.0, 0.0), &mut out, || 0.0);
+        assert_eq!(out.iter().filter(|&&r| r < 3.0).count(), 1);
+
+        // A random room on a full turn and on the Jackal's 270° (no wrapping round the back),
+        // against the brute force on the pooled bins' centres.
+        use rand::{RngExt, SeedableRng};
+        use std::f32::consts::{PI, TAU};
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        for (beams, angle_min, inc) in [(360, -PI, TAU / 360.0), (720, -2.356_194_5, 4.712_389 / 719.0)] {
+            let group = beams / 120;
+            let ranges: Vec<f32> = (0..beams)
+                .map(|i| {
+                    let u: f32 = rng.random();
+                    if u < 0.3 { f32::INFINITY } else { 0.3 + 2.5 * (i as f32 * 0.05).sin().abs() + 0.2 * u }
+                })
+                .collect();
+            let centre = |k: usize| angle_min + (k * group) as f32 * inc + (group - 1) as f32 * 0.5 * inc;
+            let mut pooled = vec![0.0; 120];
+            min_pool(&ranges, &mut pooled);
+            let pooled: Vec<f32> = pooled.iter().map(|r| r.clamp(0.15, 3.0)).collect();
+            let want = free_travel_brute(&pooled, centre, 3.0, 0.25);
+            let input = ObservationInputs { angle_increment: inc, ..inputs(&ranges, 1.0, 0.0) };
+            b.write(&input, &mut out, || 0.0);
+            for (j, (got, want)) in out.iter().zip(&want).enumerate() {
+                assert!((got - want).abs() < 1e-4, "{beams} beams, bin {j}: {got} against {want}");
+            }
+            assert!(out.iter().any(|&t| t > 0.0 && t < 3.0));
+        }
+
+        // A return inside the disc: nowhere to go.
+        ranges[100] = 0.2;
+        b.write(&inputs(&ranges, 1.0, 0.0), &mut out, || 0.0);
+        assert!(out.iter().all(|&t| t == 0.0));
+    }
+
+    #[test]
+    fn sweep_reads_and_writes_as_yaml_and_is_checked() {
+        let t: ObservationLayout =
+            from_yaml_str("t.yaml", "- lidar: {beams: 120, clip: [0.15, 3.0], sweep: 0.25}").unwrap();
+        assert_eq!(t.0, vec![ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.25 }]);
+        // A plain term writes no sweep, so contracts read by older builds stay readable.
+        let plain = to_yaml_string(&ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.0 });
+        assert!(!plain.contains("sweep"), "{plain}");
+        let bad = ObservationLayout(vec![ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: -0.1 }]);
+        let err = bad.check().unwrap_err();
+        assert_eq!(err.key, "observation[0].lidar.sweep");
+        assert!(err.expected.contains("got -0.1"), "{}", err.expected);
     }
 }

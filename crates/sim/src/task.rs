@@ -1081,6 +1081,7 @@ impl NavEnv {
         }
         let inputs = ObservationInputs {
             ranges: &self.ranges,
+            angle_increment: self.setup.lidar.spec().angle_increment(),
             goal_distance: dist,
             goal_bearing: bearing,
             last_command: self.last_command,

@@ -60,8 +60,8 @@ fn stepping_does_not_allocate() {
     assert!(resets > 5);
     assert_eq!(MINE.with(|c| c.get()) - before, 0, "NavEnv step/reset allocated");
 
-    // A layout with history terms (the article's 133 values) and the path ahead: its past is
-    // kept in place, the points written into a preallocated buffer.
+    // A layout with history terms (the article's 133 values), the path ahead and a swept scan:
+    // its past is kept in place, the points and the sweep's table in preallocated buffers.
     let spec = ScenarioSpec::load("static-room").unwrap();
     let robot = RobotSpec::load(&spec.robot).unwrap();
     let history = |term| ObsTerm::History {
@@ -72,7 +72,7 @@ fn stepping_does_not_allocate() {
         fill: HistoryFill::First,
     };
     let observation = ObservationLayout(vec![
-        ObsTerm::Lidar { beams: 120, clip: [0.15, 2.0] },
+        ObsTerm::Lidar { beams: 120, clip: [0.15, 2.0], sweep: 0.25 },
         history(ObsTerm::GoalBearing),
         history(ObsTerm::GoalDistance),
         ObsTerm::Linear,

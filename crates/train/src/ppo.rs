@@ -1016,7 +1016,7 @@ mod tests {
     fn mirrored_statistics_commute_with_normalising() {
         use rlnav_sim::observation::{ObsTerm, ObservationLayout};
         let observation = ObservationLayout(vec![
-            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0] },
+            ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.0 },
             ObsTerm::GoalDistance,
             ObsTerm::GoalBearing,
             ObsTerm::PlanAhead { points: 2, spacing: 0.3 },
