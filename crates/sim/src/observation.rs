@@ -693,6 +693,9 @@ fn write_term(
                 let group = inputs.ranges.len() / beams;
                 let inc = inputs.angle_increment.abs();
                 let bin_width = group as f32 * inc;
+                // Beams spread evenly round the whole turn, also a ROS scan that ends one
+                // increment short of it (`angle_max = π - inc`), which `is_full_circle` on
+                // its angles would call partial: the bins wrap round the back.
                 let full = (inputs.ranges.len() as f32 * inc - std::f32::consts::TAU).abs() < 0.5 * inc;
                 sweep_table.fit(bin_width, *beams);
                 free_travel(pooled, clip[1], *sweep, full, &sweep_table.cos_sin, out);
@@ -756,6 +759,8 @@ fn free_travel(ranges: &[f32], far: f32, radius: f32, full: bool, cos_sin: &[(f3
     let n = ranges.len();
     out.fill(far);
     let r2 = radius * radius;
+    // Largest offset in bins: half a turn each way round a full turn, the whole scan otherwise.
+    let reach = if full { n / 2 } else { n - 1 };
     for (k, &d) in ranges.iter().enumerate() {
         if d >= far {
             continue;
@@ -765,7 +770,6 @@ fn free_travel(ranges: &[f32], far: f32, radius: f32, full: bool, cos_sin: &[(f3
             out.fill(0.0);
             return;
         }
-        let reach = if full { n / 2 } else { n - 1 };
         for (m, &(c, s)) in cos_sin.iter().enumerate().take(reach + 1) {
             let lateral = d * s;
             // Past a right angle, or wide enough to clear it: so are all larger offsets.
