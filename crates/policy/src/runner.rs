@@ -407,6 +407,9 @@ impl PolicyRunner {
         let inputs = ObservationInputs {
             ranges: &self.scan,
             angle_increment: self.contract.scan.lidar_spec().angle_increment(),
+            angle_min: self.contract.scan.lidar_spec().angle_min,
+            // The adapted scan is measured from the lidar, in bearings of `base_link`.
+            pose: o.pose.compose(&rlnav_sim::Pose2::new(o.scan_mount.x, o.scan_mount.y, 0.0)),
             goal_distance,
             goal_bearing,
             last_command: self.last,

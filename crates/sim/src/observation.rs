@@ -12,6 +12,7 @@
 
 use crate::config::{Invalid, Validate, check_interval};
 use crate::controller::Twist;
+use crate::geometry::{Pose2, Vec2};
 use crate::lidar::{LidarSpec, min_pool};
 use serde::{Deserialize, Serialize};
 
@@ -84,7 +85,18 @@ pub enum ObsTerm {
         /// What the steps before the episode's first read (default: its first value).
         #[serde(default)]
         fill: HistoryFill,
+        /// For a lidar term: show each past scan as seen from where the scanner is now
+        /// ([`ObservationInputs::pose`]), its returns moved by the robot's motion since
+        /// (default false: as it was seen then). Still obstacles then read the same at every
+        /// step shown and only what moves changes, where otherwise the robot's own turn
+        /// shifts every bin and its drive changes every range.
+        #[serde(default, skip_serializing_if = "is_false")]
+        ego_motion: bool,
     },
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 fn is_zero(x: &f32) -> bool {
@@ -171,10 +183,11 @@ impl ObsTerm {
             }
             ObsTerm::Lidar { beams, clip, .. } => format!("lidar {beams} beams, clip [{}, {}]", clip[0], clip[1]),
             ObsTerm::PlanAhead { points, spacing } => format!("plan_ahead {points} points, {spacing} m apart"),
-            ObsTerm::History { term, steps, stride, order, fill } => format!(
-                "{} × {steps}{}, {}, before the episode: {}",
+            ObsTerm::History { term, steps, stride, order, fill, ego_motion } => format!(
+                "{} × {steps}{}{}, {}, before the episode: {}",
                 term.describe(),
                 if *stride > 1 { format!(" every {stride} steps") } else { String::new() },
+                if *ego_motion { ", seen from the current pose" } else { "" },
                 match order {
                     HistoryOrder::OldestFirst => "oldest first",
                     HistoryOrder::NewestFirst => "newest first",
@@ -215,7 +228,16 @@ impl ObsTerm {
                 }
                 Ok(())
             }
-            ObsTerm::History { term, steps, stride, .. } => {
+            ObsTerm::History { term, steps, stride, ego_motion, .. } => {
+                if *ego_motion && !matches!(**term, ObsTerm::Lidar { .. }) {
+                    return Err(Invalid::new(
+                        format!("{key}.history.ego_motion"),
+                        format!(
+                            "false for a {} term (only past scans can be moved by the robot's motion)",
+                            term.name()
+                        ),
+                    ));
+                }
                 if !(1..=MAX_HISTORY_STEPS).contains(steps) {
                     return Err(Invalid::new(
                         format!("{key}.history.steps"),
@@ -498,6 +520,13 @@ pub struct ObservationInputs<'a> {
     pub velocity: Twist,
     /// Measured lateral velocity (m/s, `base_link` y).
     pub lateral_velocity: f32,
+    /// Angle of the first beam of `ranges` (rad, in the frame of [`pose`](Self::pose)): a
+    /// history with `ego_motion` needs it.
+    pub angle_min: f32,
+    /// Where the scan is taken from, in a fixed frame (odometry): the scanner's position,
+    /// with the heading of the frame `angle_min` is measured in. A history with `ego_motion`
+    /// moves past scans by the change of this pose; others ignore it.
+    pub pose: crate::geometry::Pose2,
     /// The points a `plan_ahead` term shows, in the robot frame
     /// ([`crate::plan::points_ahead`]); empty when the layout has none. Missing points read as
     /// the last one given (zeros when none is).
@@ -515,31 +544,65 @@ struct Stack {
     stride: usize,
     order: HistoryOrder,
     fill: HistoryFill,
+    /// Past scans are moved by the robot's motion: `past` and `newest` then hold the pooled,
+    /// clipped ranges and `poses` where each was taken; the term's values are made at write.
+    ego_motion: bool,
     /// Up to `(steps - 1) × stride` past steps, oldest first, `width` values each.
     past: Vec<f32>,
+    /// The pose of each past step (`ego_motion` only; empty otherwise).
+    poses: Vec<Pose2>,
     /// Past steps stored.
     stored: usize,
     /// The current values written last (stored by the next commit).
     newest: Vec<f32>,
+    /// The current pose written last (`ego_motion` only).
+    newest_pose: Pose2,
+}
+
+/// Where a shown step's values are kept.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Slot {
+    /// The current step's.
+    Newest,
+    /// Past step `p` (0 the oldest stored).
+    Past(usize),
+    /// None: the step reads zeros.
+    Zero,
 }
 
 impl Stack {
-    /// The values of chronological step `s` (`steps - 1` is the current one).
-    fn step(&self, s: usize) -> Option<&[f32]> {
-        let w = self.width;
+    /// Where the values of chronological step `s` (`steps - 1` is the current one) are.
+    fn slot(&self, s: usize) -> Slot {
         // Control steps back from the current one.
         let back = (self.steps - 1 - s) * self.stride;
         if back == 0 {
-            Some(self.newest.as_slice())
+            Slot::Newest
         } else if back <= self.stored {
-            let p = self.stored - back;
-            Some(&self.past[p * w..(p + 1) * w])
+            Slot::Past(self.stored - back)
         } else {
             match self.fill {
-                HistoryFill::First if self.stored > 0 => Some(&self.past[..w]),
-                HistoryFill::First => Some(self.newest.as_slice()),
-                HistoryFill::Zero => None,
+                HistoryFill::First if self.stored > 0 => Slot::Past(0),
+                HistoryFill::First => Slot::Newest,
+                HistoryFill::Zero => Slot::Zero,
             }
+        }
+    }
+
+    /// The stored values of a slot.
+    fn values(&self, slot: Slot) -> Option<&[f32]> {
+        let w = self.width;
+        match slot {
+            Slot::Newest => Some(self.newest.as_slice()),
+            Slot::Past(p) => Some(&self.past[p * w..(p + 1) * w]),
+            Slot::Zero => None,
+        }
+    }
+
+    /// Where chronological step `s` goes among the steps shown (the history's order).
+    fn shown_at(&self, s: usize) -> usize {
+        match self.order {
+            HistoryOrder::OldestFirst => s,
+            HistoryOrder::NewestFirst => self.steps - 1 - s,
         }
     }
 
@@ -551,9 +614,15 @@ impl Stack {
         }
         if self.stored == cap {
             self.past.copy_within(w.., 0);
+            if self.ego_motion {
+                self.poses.copy_within(1.., 0);
+            }
             self.stored -= 1;
         }
         self.past[self.stored * w..(self.stored + 1) * w].copy_from_slice(&self.newest);
+        if self.ego_motion {
+            self.poses[self.stored] = self.newest_pose;
+        }
         self.stored += 1;
     }
 }
@@ -564,6 +633,8 @@ impl Stack {
 pub struct ObservationBuilder {
     layout: ObservationLayout,
     pooled: Vec<f32>,
+    /// A past scan moved into the current pose (`ego_motion`).
+    moved: Vec<f32>,
     sweep: SweepTable,
     /// One per history term, in layout order.
     stacks: Vec<Stack>,
@@ -578,15 +649,22 @@ impl ObservationBuilder {
             .0
             .iter()
             .filter_map(|t| match t {
-                ObsTerm::History { term, steps, stride, order, fill } => Some(Stack {
+                ObsTerm::History { term, steps, stride, order, fill, ego_motion } => Some(Stack {
                     width: term.len(),
                     steps: *steps,
                     stride: *stride,
                     order: *order,
                     fill: *fill,
+                    ego_motion: *ego_motion,
                     past: vec![0.0; steps.saturating_sub(1) * stride * term.len()],
+                    poses: if *ego_motion {
+                        vec![Pose2::default(); steps.saturating_sub(1) * stride]
+                    } else {
+                        Vec::new()
+                    },
                     stored: 0,
                     newest: vec![0.0; term.len()],
+                    newest_pose: Pose2::default(),
                 }),
                 _ => None,
             })
@@ -595,6 +673,7 @@ impl ObservationBuilder {
         Self {
             layout: layout.clone(),
             pooled: vec![0.0; beams],
+            moved: vec![0.0; beams],
             sweep: SweepTable { bin_width: f32::NAN, cos_sin: Vec::with_capacity(beams) },
             stacks,
             written: false,
@@ -641,26 +720,47 @@ impl ObservationBuilder {
     /// randomisation; `|| 0.0` for none). Writing again before a commit replaces the current
     /// step's values.
     pub fn write(&mut self, inputs: &ObservationInputs, out: &mut [f32], mut lidar_noise: impl FnMut() -> f32) {
-        let Self { layout, pooled, sweep, stacks, written } = self;
+        let Self { layout, pooled, moved, sweep, stacks, written } = self;
         let mut k = 0;
         let mut h = 0;
         for term in &layout.0 {
             let n = term.len();
             let dst = &mut out[k..k + n];
-            if let ObsTerm::History { term, .. } = term {
+            if let ObsTerm::History { term, ego_motion, .. } = term {
                 let s = &mut stacks[h];
                 h += 1;
-                write_term(term, inputs, pooled, sweep, &mut s.newest, &mut lidar_noise);
-                let w = s.width;
-                for step in 0..s.steps {
-                    let slot = match s.order {
-                        HistoryOrder::OldestFirst => step,
-                        HistoryOrder::NewestFirst => s.steps - 1 - step,
-                    };
-                    let d = &mut dst[slot * w..(slot + 1) * w];
-                    match s.step(step) {
-                        Some(v) => d.copy_from_slice(v),
-                        None => d.fill(0.0),
+                match (&**term, *ego_motion) {
+                    (&ObsTerm::Lidar { beams, clip, sweep: radius }, true) => {
+                        // The stack keeps pooled ranges and poses; each step shown is the scan
+                        // then, moved into the pose now, then swept (or not) as a plain term.
+                        pool_lidar(inputs, clip, &mut s.newest, &mut lidar_noise);
+                        s.newest_pose = inputs.pose;
+                        let bins = ScanBins::of(inputs, beams);
+                        let w = s.width;
+                        for step in 0..s.steps {
+                            let d = &mut dst[s.shown_at(step) * w..][..w];
+                            match s.slot(step) {
+                                Slot::Zero => d.fill(0.0),
+                                Slot::Newest => finish_lidar(&s.newest, clip, radius, &bins, sweep, d),
+                                Slot::Past(p) => {
+                                    let then = inputs.pose.inverse().compose(&s.poses[p]);
+                                    let moved = &mut moved[..beams];
+                                    move_scan(&s.past[p * w..(p + 1) * w], &then, clip, &bins, moved);
+                                    finish_lidar(moved, clip, radius, &bins, sweep, d);
+                                }
+                            }
+                        }
+                    }
+                    _ => {
+                        write_term(term, inputs, pooled, sweep, &mut s.newest, &mut lidar_noise);
+                        let w = s.width;
+                        for step in 0..s.steps {
+                            let d = &mut dst[s.shown_at(step) * w..][..w];
+                            match s.values(s.slot(step)) {
+                                Some(v) => d.copy_from_slice(v),
+                                None => d.fill(0.0),
+                            }
+                        }
                     }
                 }
             } else {
@@ -684,24 +784,8 @@ fn write_term(
     match term {
         ObsTerm::Lidar { beams, clip, sweep } => {
             let pooled = &mut pooled[..*beams];
-            min_pool(inputs.ranges, pooled);
-            for r in pooled.iter_mut() {
-                // +inf (no return) clips to the far end.
-                *r = (r.min(clip[1]) + lidar_noise()).clamp(clip[0], clip[1]);
-            }
-            if *sweep > 0.0 {
-                let group = inputs.ranges.len() / beams;
-                let inc = inputs.angle_increment.abs();
-                let bin_width = group as f32 * inc;
-                // Beams spread evenly round the whole turn, also a ROS scan that ends one
-                // increment short of it (`angle_max = π - inc`), which `is_full_circle` on
-                // its angles would call partial: the bins wrap round the back.
-                let full = (inputs.ranges.len() as f32 * inc - std::f32::consts::TAU).abs() < 0.5 * inc;
-                sweep_table.fit(bin_width, *beams);
-                free_travel(pooled, clip[1], *sweep, full, &sweep_table.cos_sin, out);
-            } else {
-                out.copy_from_slice(pooled);
-            }
+            pool_lidar(inputs, *clip, pooled, lidar_noise);
+            finish_lidar(pooled, *clip, *sweep, &ScanBins::of(inputs, *beams), sweep_table, out);
         }
         ObsTerm::GoalDistance => out[0] = inputs.goal_distance,
         ObsTerm::GoalBearing => out[0] = inputs.goal_bearing,
@@ -719,6 +803,127 @@ fn write_term(
             }
         }
         ObsTerm::History { .. } => unreachable!("histories of histories are refused by ObservationLayout::check"),
+    }
+}
+
+/// Min-pools the scan into `pooled` (its length the term's bins), adds noise and clips.
+fn pool_lidar(inputs: &ObservationInputs, clip: [f32; 2], pooled: &mut [f32], lidar_noise: &mut impl FnMut() -> f32) {
+    min_pool(inputs.ranges, pooled);
+    for r in pooled.iter_mut() {
+        // +inf (no return) clips to the far end.
+        *r = (r.min(clip[1]) + lidar_noise()).clamp(clip[0], clip[1]);
+    }
+}
+
+/// A lidar term's values from its pooled, clipped ranges: the ranges, or their free travel
+/// for a disc of `radius` > 0.
+fn finish_lidar(pooled: &[f32], clip: [f32; 2], radius: f32, bins: &ScanBins, table: &mut SweepTable, out: &mut [f32]) {
+    if radius > 0.0 {
+        table.fit(bins.width, pooled.len());
+        free_travel(pooled, clip[1], radius, bins.full, &table.cos_sin, out);
+    } else {
+        out.copy_from_slice(pooled);
+    }
+}
+
+/// The bearings of a lidar term's bins.
+#[derive(Clone, Copy, Debug)]
+struct ScanBins {
+    /// Bins.
+    n: usize,
+    /// Bearing of bin 0's centre (rad).
+    first: f32,
+    /// Angle between two bins (rad).
+    width: f32,
+    /// The bins go round the whole turn.
+    full: bool,
+}
+
+impl ScanBins {
+    fn of(inputs: &ObservationInputs, beams: usize) -> Self {
+        let group = inputs.ranges.len() / beams.max(1);
+        let inc = inputs.angle_increment.abs();
+        // Beams spread evenly round the whole turn, also a ROS scan that ends one increment
+        // short of it (`angle_max = π - inc`), which `is_full_circle` on its angles would call
+        // partial: the bins wrap round the back.
+        let full = (inputs.ranges.len() as f32 * inc - std::f32::consts::TAU).abs() < 0.5 * inc;
+        let first = inputs.angle_min + 0.5 * (group as f32 - 1.0) * inc;
+        Self { n: beams, first, width: group as f32 * inc, full }
+    }
+
+    /// The bin (fractional) whose centre lies at `bearing`, counted from bin 0 counter-clockwise
+    /// round the turn, in `[0, 2π / width)`.
+    fn index(&self, bearing: f32) -> f32 {
+        (bearing - self.first).rem_euclid(std::f32::consts::TAU) / self.width
+    }
+}
+
+/// Neighbouring returns of a scan closer in range than this (m) are taken for one surface
+/// when a scan is moved ([`move_scan`]): a wall seen at a slant steps by up to 0.3 m from one
+/// 3° bin to the next at 2 m, while a cart or a post stands a metre or more off the wall behind.
+const SURFACE_STEP: f32 = 0.3;
+
+/// A past scan's pooled ranges `then_ranges`, taken at pose `then` (given in the current
+/// scanner frame), as the current scanner would see its returns. Each bin's return is an arc
+/// of the bin's width at its range, joined to the next bin's return by a straight segment when
+/// the two are one surface ([`SURFACE_STEP`]), so that a wall stays whole when the robot's
+/// motion spreads its returns over more bins. Moved into the current frame, every current bin
+/// whose bearing crosses an arc or segment reads the distance to it along that bearing (the
+/// nearest one). Bins none crosses read `clip[1]` (nothing there then, or out of view then).
+/// Values clipped to `clip`.
+fn move_scan(then_ranges: &[f32], then: &Pose2, clip: [f32; 2], bins: &ScanBins, out: &mut [f32]) {
+    let n = bins.n;
+    out.fill(clip[1]);
+    // Bins round the whole turn, the wrap included (a partial scan has fewer).
+    let round = (std::f32::consts::TAU / bins.width).round() as usize;
+    let to_now = |r: f32, a: f32| {
+        let (s, c) = (a + then.yaw).sin_cos();
+        Vec2::new(then.x + r * c, then.y + r * s)
+    };
+    // Draws the segment p–q: the bins whose bearings it crosses read their distance to it.
+    let mut draw = |p: Vec2, q: Vec2| {
+        let (ip, iq) = (bins.index(p.y.atan2(p.x)), bins.index(q.y.atan2(q.x)));
+        // The shorter way round from one end's bearing to the other's.
+        let span = (iq - ip).rem_euclid(round as f32);
+        let (lo, span) = if span <= 0.5 * round as f32 { (ip, span) } else { (iq, round as f32 - span) };
+        let (np, nq) = (p.length(), q.length());
+        let (near, far) = (np.min(nq), np.max(nq));
+        let mut meet = |j: usize, t: f32| {
+            let j = j % round;
+            if j < n {
+                out[j] = out[j].min(t.clamp(clip[0], clip[1]));
+            }
+        };
+        // The bins whose bearings lie within the segment's (a thousandth of a bin of slack for
+        // ends on a bin's bearing); one lying between two bins' bearings, the nearer bin.
+        let (mut first, mut last) = ((lo - 1e-3).ceil().max(0.0) as usize, (lo + span + 1e-3).floor() as usize);
+        if last < first {
+            first = (lo + 0.5 * span).round() as usize;
+            last = first;
+        }
+        let e = q - p;
+        for j in first..=last {
+            let (sj, cj) = (bins.first + j as f32 * bins.width).sin_cos();
+            // Where the ray along bin j's bearing meets the line p–q.
+            let den = cj * e.y - sj * e.x;
+            let t = if den.abs() > 1e-6 { (p.x * e.y - p.y * e.x) / den } else { near };
+            meet(j, t.clamp(near, far));
+        }
+    };
+    let is_return = |d: f32| d < clip[1];
+    for (k, &d) in then_ranges.iter().enumerate() {
+        if !is_return(d) {
+            continue;
+        }
+        let centre = bins.first + k as f32 * bins.width;
+        draw(to_now(d, centre - 0.5 * bins.width), to_now(d, centre + 0.5 * bins.width));
+        let next = if k + 1 < n { Some(k + 1) } else { bins.full.then_some(0) };
+        if let Some(m) = next {
+            let dm = then_ranges[m];
+            if is_return(dm) && (dm - d).abs() <= SURFACE_STEP {
+                draw(to_now(d, centre), to_now(dm, centre + bins.width));
+            }
+        }
     }
 }
 
@@ -803,6 +1008,8 @@ mod tests {
         ObservationInputs {
             ranges,
             angle_increment: std::f32::consts::TAU / ranges.len() as f32,
+            angle_min: -std::f32::consts::PI,
+            pose: Pose2::default(),
             goal_distance: d,
             goal_bearing: b,
             last_command: Twist::new(0.3, -0.2),
@@ -813,7 +1020,7 @@ mod tests {
     }
 
     fn history(term: ObsTerm, steps: usize, order: HistoryOrder, fill: HistoryFill) -> ObsTerm {
-        ObsTerm::History { term: Box::new(term), steps, stride: 1, order, fill }
+        ObsTerm::History { term: Box::new(term), steps, stride: 1, order, fill, ego_motion: false }
     }
 
     /// The observation of a scan `f(bearing)` mirrored equals the observation of the mirrored
@@ -848,6 +1055,8 @@ mod tests {
                 let ia = ObservationInputs {
                     ranges: &ra,
                     angle_increment: spec.angle_increment(),
+                    angle_min: spec.angle_min,
+                    pose: Pose2::default(),
                     goal_distance: 2.0 + t,
                     goal_bearing: 0.4 - 0.2 * t,
                     last_command: Twist::new(0.3, 0.1 * t - 0.2),
@@ -1016,6 +1225,7 @@ mod tests {
                 stride: 2,
                 order,
                 fill,
+                ego_motion: false,
             }])
         };
         let layout = strided(HistoryOrder::OldestFirst, HistoryFill::First);
@@ -1145,5 +1355,127 @@ mod tests {
         let err = bad.check().unwrap_err();
         assert_eq!(err.key, "observation[0].lidar.sweep");
         assert!(err.expected.contains("got -0.1"), "{}", err.expected);
+    }
+
+    /// Ranges of a 360-beam full turn from `pose` inside the rectangle `[0, 4] × [0, 3]`
+    /// (every wall seen from everywhere inside), plus a post of radius 0.1 at (2.5, 1.2).
+    fn room_scan(pose: &Pose2) -> Vec<f32> {
+        let spec = LidarSpec::default();
+        (0..spec.beams)
+            .map(|i| {
+                let a = pose.yaw + spec.beam_angle(i);
+                let (s, c) = a.sin_cos();
+                let mut t = f32::INFINITY;
+                for (wall, d, pos) in [(0.0, c, pose.x), (4.0, c, pose.x), (0.0, s, pose.y), (3.0, s, pose.y)] {
+                    let hit = (wall - pos) / d;
+                    if hit > 0.0 {
+                        t = t.min(hit);
+                    }
+                }
+                // The post: the ray's nearer crossing of the circle, if any.
+                let (ox, oy) = (2.5 - pose.x, 1.2 - pose.y);
+                let along = ox * c + oy * s;
+                let off2 = ox * ox + oy * oy - along * along;
+                if along > 0.0 && off2 < 0.01 {
+                    t = t.min(along - (0.01 - off2).sqrt());
+                }
+                t
+            })
+            .collect()
+    }
+
+    /// Bin `k` of 120 of a 360-beam scan, min-pooled.
+    fn b_pooled(ranges: &[f32], k: usize) -> f32 {
+        ranges[3 * k..3 * k + 3].iter().copied().fold(f32::INFINITY, f32::min)
+    }
+
+    fn scan_inputs<'a>(ranges: &'a [f32], pose: Pose2) -> ObservationInputs<'a> {
+        let spec = LidarSpec::default();
+        ObservationInputs {
+            angle_min: spec.angle_min,
+            angle_increment: spec.angle_increment(),
+            pose,
+            ..inputs(ranges, 1.0, 0.0)
+        }
+    }
+
+    /// Past scans moved into the current pose read what the current scan reads wherever the
+    /// past scan saw the same surface (a room with a post, the robot driven 0.3 m and turned
+    /// 0.5 rad), and a plain history does not.
+    #[test]
+    fn ego_motion_shows_still_obstacles_where_they_are_now() {
+        let layout = |ego_motion, sweep| {
+            ObservationLayout(vec![ObsTerm::History {
+                term: Box::new(ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep }),
+                steps: 2,
+                stride: 1,
+                order: HistoryOrder::OldestFirst,
+                fill: HistoryFill::First,
+                ego_motion,
+            }])
+        };
+        let then = Pose2::new(1.2, 1.0, 0.3);
+        let now = Pose2::new(1.45, 1.15, 0.8);
+        let (a, b) = (room_scan(&then), room_scan(&now));
+        for sweep in [0.0, 0.25] {
+            let mut moved = ObservationBuilder::new(&layout(true, sweep));
+            let mut plain = ObservationBuilder::new(&layout(false, sweep));
+            let (mut om, mut op) = (vec![0.0; 240], vec![0.0; 240]);
+            for (builder, out) in [(&mut moved, &mut om), (&mut plain, &mut op)] {
+                builder.write(&scan_inputs(&a, then), out, || 0.0);
+                builder.commit();
+                builder.write(&scan_inputs(&b, now), out, || 0.0);
+            }
+            // The current step is the plain term's in both.
+            assert_eq!(om[120..], op[120..]);
+            // Among the bins that see a surface within 2.5 m now (one the scan then reached
+            // too), those that agree within 0.1 m: all but the wall the post hid then.
+            let seen: Vec<usize> = (0..120).filter(|&k| b_pooled(&b, k) < 2.5).collect();
+            let close = |past: &[f32]| seen.iter().filter(|&&k| (past[k] - om[120 + k]).abs() < 0.1).count();
+            let (m, p) = (close(&om[..120]), close(&op[..120]));
+            assert!(seen.len() > 80, "{}", seen.len());
+            assert!(m + 2 >= seen.len(), "sweep {sweep}: {m} of {} moved bins agree with the current scan", seen.len());
+            assert!(2 * p < seen.len(), "sweep {sweep}: {p} of {} unmoved bins agree", seen.len());
+        }
+    }
+
+    /// Moving a scan by a turn of whole bins is a shift of its bins; by no motion, nothing.
+    #[test]
+    fn a_scan_moved_by_a_turn_is_shifted() {
+        let ranges: Vec<f32> = (0..120).map(|k| 0.5 + 0.02 * k as f32).collect();
+        let full: Vec<f32> = vec![1.0; 360];
+        let bins = ScanBins::of(&scan_inputs(&full, Pose2::default()), 120);
+        let mut out = vec![0.0; 120];
+        move_scan(&ranges, &Pose2::default(), [0.15, 3.0], &bins, &mut out);
+        for (o, r) in out.iter().zip(&ranges) {
+            assert!((o - r).abs() < 1e-4, "{o} against {r}");
+        }
+        // The scan then was taken facing 5 bins further left: its bin k is bin k + 5 now.
+        move_scan(&ranges, &Pose2::new(0.0, 0.0, 5.0 * bins.width), [0.15, 3.0], &bins, &mut out);
+        for k in 0..120 {
+            assert!((out[(k + 5) % 120] - ranges[k]).abs() < 1e-3, "bin {k}");
+        }
+    }
+
+    #[test]
+    fn ego_motion_reads_and_writes_as_yaml_and_is_checked() {
+        let yaml = "- history: {term: {lidar: {beams: 120, clip: [0.15, 3.0]}}, steps: 3, stride: 3, order: oldest_first, ego_motion: true}";
+        let t: ObservationLayout = from_yaml_str("t.yaml", yaml).unwrap();
+        assert!(matches!(t.0[0], ObsTerm::History { ego_motion: true, .. }));
+        assert!(t.0[0].describe().contains("seen from the current pose"));
+        // Without it nothing is written, so older contracts read the same.
+        let plain = to_yaml_string(&history(ObsTerm::GoalDistance, 2, HistoryOrder::OldestFirst, HistoryFill::First));
+        assert!(!plain.contains("ego_motion"), "{plain}");
+        let bad = ObservationLayout(vec![ObsTerm::History {
+            term: Box::new(ObsTerm::GoalBearing),
+            steps: 2,
+            stride: 1,
+            order: HistoryOrder::OldestFirst,
+            fill: HistoryFill::First,
+            ego_motion: true,
+        }]);
+        let err = bad.check().unwrap_err();
+        assert_eq!(err.key, "observation[0].history.ego_motion");
+        assert!(err.expected.contains("goal_bearing"), "{}", err.expected);
     }
 }

@@ -1082,6 +1082,9 @@ impl NavEnv {
         let inputs = ObservationInputs {
             ranges: &self.ranges,
             angle_increment: self.setup.lidar.spec().angle_increment(),
+            angle_min: self.setup.lidar.spec().angle_min,
+            // The scanner, where the ranges are measured from and in whose frame.
+            pose: self.drive.pose.compose(&self.setup.lidar.spec().mount),
             goal_distance: dist,
             goal_bearing: bearing,
             last_command: self.last_command,
@@ -1789,6 +1792,7 @@ mod tests {
                 stride: 1,
                 order: HistoryOrder::OldestFirst,
                 fill: HistoryFill::First,
+                ego_motion: false,
             },
             ObsTerm::History {
                 term: Box::new(ObsTerm::Linear),
@@ -1796,6 +1800,7 @@ mod tests {
                 stride: 1,
                 order: HistoryOrder::NewestFirst,
                 fill: HistoryFill::Zero,
+                ego_motion: false,
             },
             ObsTerm::Lateral,
         ]);

@@ -60,8 +60,9 @@ fn stepping_does_not_allocate() {
     assert!(resets > 5);
     assert_eq!(MINE.with(|c| c.get()) - before, 0, "NavEnv step/reset allocated");
 
-    // A layout with history terms (the article's 133 values), the path ahead and a swept scan:
-    // its past is kept in place, the points and the sweep's table in preallocated buffers.
+    // A layout with history terms (the article's 133 values), the path ahead, a swept scan and
+    // past scans moved by the robot's motion: its past is kept in place, the points, the
+    // sweep's table and the moved scan in preallocated buffers.
     let spec = ScenarioSpec::load("static-room").unwrap();
     let robot = RobotSpec::load(&spec.robot).unwrap();
     let history = |term| ObsTerm::History {
@@ -70,9 +71,19 @@ fn stepping_does_not_allocate() {
         stride: 2,
         order: HistoryOrder::OldestFirst,
         fill: HistoryFill::First,
+        ego_motion: false,
     };
     let observation = ObservationLayout(vec![
         ObsTerm::Lidar { beams: 120, clip: [0.15, 2.0], sweep: 0.25 },
+        // Past scans moved by the robot's motion, then swept.
+        ObsTerm::History {
+            term: Box::new(ObsTerm::Lidar { beams: 60, clip: [0.15, 3.0], sweep: 0.25 }),
+            steps: 3,
+            stride: 3,
+            order: HistoryOrder::OldestFirst,
+            fill: HistoryFill::First,
+            ego_motion: true,
+        },
         history(ObsTerm::GoalBearing),
         history(ObsTerm::GoalDistance),
         ObsTerm::Linear,
@@ -82,7 +93,7 @@ fn stepping_does_not_allocate() {
     ]);
     let task = TaskConfig { observation, ..Default::default() };
     let mut env = NavEnv::new(Arc::new(EnvSetup::new(spec, robot, task).unwrap()), 3).unwrap();
-    let mut obs = vec![0.0; 141];
+    let mut obs = vec![0.0; 321];
     let before = MINE.with(|c| c.get());
     for i in 0..2000 {
         // Every other step without a write: the step records its observation itself.
