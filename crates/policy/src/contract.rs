@@ -282,6 +282,15 @@ impl Validate for PolicyContract {
                 return Err(Invalid::new(key, format!("a divisor of scan.beams ({}), got {beams}", self.scan.beams)));
             }
         }
+        // Past scans are moved by bearings counter-clockwise from `angle_min`.
+        let moved =
+            self.observation.0.iter().any(|t| matches!(t, rlnav_sim::task::ObsTerm::History { ego_motion: true, .. }));
+        if moved && self.scan.direction != BeamOrder::CounterClockwise {
+            return Err(Invalid::new(
+                "scan.direction",
+                "counter_clockwise for an observation with a history of moved scans (ego_motion)",
+            ));
+        }
         let linear_max = if self.action.linear_relative { 1.0 } else { 100.0 };
         check_interval("action.linear", self.action.linear, -linear_max, linear_max)?;
         check_interval("action.angular", self.action.angular, -100.0, 100.0)?;

@@ -257,3 +257,23 @@ fn the_simulator_and_the_runner_agree_on_past_scans_moved_by_the_robot() {
     let steps = common::runner_matches_simulator(&mut runner, &mut env, "ego_motion");
     assert!(steps > 20, "{steps} steps compared");
 }
+
+/// Past scans are moved by bearings counter-clockwise from `angle_min`: a contract whose beams
+/// run clockwise is refused with the key to change, not moved the mirrored way.
+#[test]
+fn a_clockwise_scan_with_moved_past_scans_is_refused() {
+    use rlnav_sim::config::Validate;
+    let mut c = PolicyContract::from_file(&contract_path("article-mlp-133.yaml")).unwrap();
+    c.observation = rlnav_sim::ObservationLayout(vec![ObsTerm::History {
+        term: Box::new(ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.0 }),
+        steps: 2,
+        stride: 1,
+        order: rlnav_sim::task::HistoryOrder::OldestFirst,
+        fill: rlnav_sim::task::HistoryFill::First,
+        ego_motion: true,
+    }]);
+    c.validate().unwrap();
+    c.scan.direction = rlnav_policy::contract::BeamOrder::Clockwise;
+    let e = c.validate().unwrap_err();
+    assert_eq!(e.key, "scan.direction");
+}

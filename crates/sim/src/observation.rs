@@ -874,40 +874,56 @@ const SURFACE_STEP: f32 = 0.3;
 fn move_scan(then_ranges: &[f32], then: &Pose2, clip: [f32; 2], bins: &ScanBins, out: &mut [f32]) {
     let n = bins.n;
     out.fill(clip[1]);
-    // Bins round the whole turn, the wrap included (a partial scan has fewer).
+    // Bins round the whole turn, the wrap included (a partial scan has fewer); `turn`, the
+    // same as [`ScanBins::index`] counts it, for bearings (not whole where bins do not divide
+    // the turn).
     let round = (std::f32::consts::TAU / bins.width).round() as usize;
+    let turn = if bins.full { round as f32 } else { std::f32::consts::TAU / bins.width };
     let to_now = |r: f32, a: f32| {
         let (s, c) = (a + then.yaw).sin_cos();
         Vec2::new(then.x + r * c, then.y + r * s)
     };
     // Draws the segment p–q: the bins whose bearings it crosses read their distance to it.
     let mut draw = |p: Vec2, q: Vec2| {
+        // A pose that is not finite (bad odometry) moves nothing anywhere: the robot's
+        // controller reports the bad input, not a panic here.
+        if !(p.is_finite() && q.is_finite()) {
+            return;
+        }
         let (ip, iq) = (bins.index(p.y.atan2(p.x)), bins.index(q.y.atan2(q.x)));
         // The shorter way round from one end's bearing to the other's.
-        let span = (iq - ip).rem_euclid(round as f32);
-        let (lo, span) = if span <= 0.5 * round as f32 { (ip, span) } else { (iq, round as f32 - span) };
+        let span = (iq - ip).rem_euclid(turn);
+        let (lo, span) = if span <= 0.5 * turn { (ip, span) } else { (iq, turn - span) };
         let (np, nq) = (p.length(), q.length());
         let (near, far) = (np.min(nq), np.max(nq));
-        let mut meet = |j: usize, t: f32| {
-            let j = j % round;
-            if j < n {
-                out[j] = out[j].min(t.clamp(clip[0], clip[1]));
+        let e = q - p;
+        // The bins whose bearings lie within index range [a, a + width] (a thousandth of a bin
+        // of slack for ends on a bin's bearing; one lying between two bins' bearings, the
+        // nearer bin) read their distance along their bearing to the line p–q.
+        let mut cover = |a: f32, width: f32| {
+            let (mut first, mut last) = ((a - 1e-3).ceil().max(0.0) as usize, (a + width + 1e-3).floor() as usize);
+            if last < first {
+                first = (a + 0.5 * width).round() as usize;
+                last = first;
+            }
+            for i in first..=last {
+                // Round a full turn the bins wrap; a partial scan's past its last are out of view.
+                let j = if bins.full { i % round } else { i };
+                if j >= n {
+                    continue;
+                }
+                let (sj, cj) = (bins.first + i as f32 * bins.width).sin_cos();
+                let den = cj * e.y - sj * e.x;
+                let t = if den.abs() > 1e-6 { (p.x * e.y - p.y * e.x) / den } else { near };
+                out[j] = out[j].min(t.clamp(near, far).clamp(clip[0], clip[1]));
             }
         };
-        // The bins whose bearings lie within the segment's (a thousandth of a bin of slack for
-        // ends on a bin's bearing); one lying between two bins' bearings, the nearer bin.
-        let (mut first, mut last) = ((lo - 1e-3).ceil().max(0.0) as usize, (lo + span + 1e-3).floor() as usize);
-        if last < first {
-            first = (lo + 0.5 * span).round() as usize;
-            last = first;
-        }
-        let e = q - p;
-        for j in first..=last {
-            let (sj, cj) = (bins.first + j as f32 * bins.width).sin_cos();
-            // Where the ray along bin j's bearing meets the line p–q.
-            let den = cj * e.y - sj * e.x;
-            let t = if den.abs() > 1e-6 { (p.x * e.y - p.y * e.x) / den } else { near };
-            meet(j, t.clamp(near, far));
+        if bins.full || lo + span < turn {
+            cover(lo, span);
+        } else {
+            // Across the bearing where a partial scan's index wraps (not a whole bin).
+            cover(lo, turn - lo);
+            cover(0.0, lo + span - turn);
         }
     };
     let is_return = |d: f32| d < clip[1];
@@ -1455,6 +1471,24 @@ mod tests {
         for k in 0..120 {
             assert!((out[(k + 5) % 120] - ranges[k]).abs() < 1e-3, "bin {k}");
         }
+        // A 270° scan: what turned out of view then reads nothing, the rest is shifted.
+        let spec = LidarSpec { beams: 720, angle_min: -2.356_194_5, angle_max: 2.356_194_5, ..Default::default() };
+        let scan = vec![1.0; 720];
+        let partial = ObservationInputs {
+            angle_min: spec.angle_min,
+            angle_increment: spec.angle_increment(),
+            ..inputs(&scan, 1.0, 0.0)
+        };
+        let bins = ScanBins::of(&partial, 120);
+        assert!(!bins.full);
+        move_scan(&ranges, &Pose2::new(0.0, 0.0, 5.0 * bins.width), [0.15, 3.0], &bins, &mut out);
+        assert!(out[..5].iter().all(|&r| r == 3.0), "{:?}", &out[..5]);
+        for k in 0..115 {
+            assert!((out[k + 5] - ranges[k]).abs() < 1e-3, "bin {k}");
+        }
+        // A pose that is not finite moves nothing anywhere (and does not panic).
+        move_scan(&ranges, &Pose2::new(f32::NAN, 0.0, 0.0), [0.15, 3.0], &bins, &mut out);
+        assert!(out.iter().all(|&r| r == 3.0));
     }
 
     #[test]
