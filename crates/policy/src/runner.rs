@@ -404,10 +404,11 @@ impl PolicyRunner {
             self.ahead.resize(points, rlnav_sim::Vec2::ZERO);
             rlnav_sim::plan::points_ahead(plan, self.plan_progress, o.goal, &o.pose, spacing, &mut self.ahead);
         }
+        let spec = self.contract.scan.lidar_spec();
         let inputs = ObservationInputs {
             ranges: &self.scan,
-            angle_increment: self.contract.scan.lidar_spec().angle_increment(),
-            angle_min: self.contract.scan.lidar_spec().angle_min,
+            angle_increment: spec.angle_increment(),
+            angle_min: spec.angle_min,
             // The adapted scan is measured from the lidar, in bearings of `base_link`.
             pose: o.pose.compose(&rlnav_sim::Pose2::new(o.scan_mount.x, o.scan_mount.y, 0.0)),
             goal_distance,

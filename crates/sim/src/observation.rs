@@ -526,7 +526,7 @@ pub struct ObservationInputs<'a> {
     /// Where the scan is taken from, in a fixed frame (odometry): the scanner's position,
     /// with the heading of the frame `angle_min` is measured in. A history with `ego_motion`
     /// moves past scans by the change of this pose; others ignore it.
-    pub pose: crate::geometry::Pose2,
+    pub pose: Pose2,
     /// The points a `plan_ahead` term shows, in the robot frame
     /// ([`crate::plan::points_ahead`]); empty when the layout has none. Missing points read as
     /// the last one given (zeros when none is).
@@ -544,12 +544,11 @@ struct Stack {
     stride: usize,
     order: HistoryOrder,
     fill: HistoryFill,
-    /// Past scans are moved by the robot's motion: `past` and `newest` then hold the pooled,
-    /// clipped ranges and `poses` where each was taken; the term's values are made at write.
-    ego_motion: bool,
-    /// Up to `(steps - 1) × stride` past steps, oldest first, `width` values each.
+    /// Up to `(steps - 1) × stride` past steps, oldest first, `width` values each. For a
+    /// lidar history with `ego_motion`, the pooled, clipped ranges (as `newest`): the term's
+    /// values are made at write, from these moved by the robot's motion since.
     past: Vec<f32>,
-    /// The pose of each past step (`ego_motion` only; empty otherwise).
+    /// Where each past step was taken (`ego_motion` only; empty otherwise).
     poses: Vec<Pose2>,
     /// Past steps stored.
     stored: usize,
@@ -614,13 +613,13 @@ impl Stack {
         }
         if self.stored == cap {
             self.past.copy_within(w.., 0);
-            if self.ego_motion {
+            if !self.poses.is_empty() {
                 self.poses.copy_within(1.., 0);
             }
             self.stored -= 1;
         }
         self.past[self.stored * w..(self.stored + 1) * w].copy_from_slice(&self.newest);
-        if self.ego_motion {
+        if !self.poses.is_empty() {
             self.poses[self.stored] = self.newest_pose;
         }
         self.stored += 1;
@@ -655,7 +654,6 @@ impl ObservationBuilder {
                     stride: *stride,
                     order: *order,
                     fill: *fill,
-                    ego_motion: *ego_motion,
                     past: vec![0.0; steps.saturating_sub(1) * stride * term.len()],
                     poses: if *ego_motion {
                         vec![Pose2::default(); steps.saturating_sub(1) * stride]
