@@ -634,6 +634,8 @@ pub struct ObservationBuilder {
     pooled: Vec<f32>,
     /// A past scan moved into the current pose (`ego_motion`).
     moved: Vec<f32>,
+    /// The bins' directions for moving past scans.
+    moves: MoveTable,
     sweep: SweepTable,
     /// One per history term, in layout order.
     stacks: Vec<Stack>,
@@ -672,6 +674,7 @@ impl ObservationBuilder {
             layout: layout.clone(),
             pooled: vec![0.0; beams],
             moved: vec![0.0; beams],
+            moves: MoveTable::with_capacity(beams),
             sweep: SweepTable { bin_width: f32::NAN, cos_sin: Vec::with_capacity(beams) },
             stacks,
             written: false,
@@ -718,7 +721,7 @@ impl ObservationBuilder {
     /// randomisation; `|| 0.0` for none). Writing again before a commit replaces the current
     /// step's values.
     pub fn write(&mut self, inputs: &ObservationInputs, out: &mut [f32], mut lidar_noise: impl FnMut() -> f32) {
-        let Self { layout, pooled, moved, sweep, stacks, written } = self;
+        let Self { layout, pooled, moved, moves, sweep, stacks, written } = self;
         let mut k = 0;
         let mut h = 0;
         for term in &layout.0 {
@@ -743,7 +746,7 @@ impl ObservationBuilder {
                                 Slot::Past(p) => {
                                     let then = inputs.pose.inverse().compose(&s.poses[p]);
                                     let moved = &mut moved[..beams];
-                                    move_scan(&s.past[p * w..(p + 1) * w], &then, clip, &bins, moved);
+                                    move_scan(&s.past[p * w..(p + 1) * w], &then, clip, &bins, moves, moved);
                                     finish_lidar(moved, clip, radius, &bins, sweep, d);
                                 }
                             }
@@ -825,7 +828,7 @@ fn finish_lidar(pooled: &[f32], clip: [f32; 2], radius: f32, bins: &ScanBins, ta
 }
 
 /// The bearings of a lidar term's bins.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct ScanBins {
     /// Bins.
     n: usize,
@@ -869,26 +872,44 @@ const SURFACE_STEP: f32 = 0.3;
 /// whose bearing crosses an arc or segment reads the distance to it along that bearing (the
 /// nearest one). Bins none crosses read `clip[1]` (nothing there then, or out of view then).
 /// Values clipped to `clip`.
-fn move_scan(then_ranges: &[f32], then: &Pose2, clip: [f32; 2], bins: &ScanBins, out: &mut [f32]) {
+fn move_scan(
+    then_ranges: &[f32],
+    then: &Pose2,
+    clip: [f32; 2],
+    bins: &ScanBins,
+    table: &mut MoveTable,
+    out: &mut [f32],
+) {
     let n = bins.n;
+    table.fit(bins);
     out.fill(clip[1]);
     // Bins round the whole turn, the wrap included (a partial scan has fewer); `turn`, the
     // same as [`ScanBins::index`] counts it, for bearings (not whole where bins do not divide
     // the turn).
     let round = (std::f32::consts::TAU / bins.width).round() as usize;
     let turn = if bins.full { round as f32 } else { std::f32::consts::TAU / bins.width };
-    let to_now = |r: f32, a: f32| {
-        let (s, c) = (a + then.yaw).sin_cos();
-        Vec2::new(then.x + r * c, then.y + r * s)
-    };
-    // Draws the segment p–q: the bins whose bearings it crosses read their distance to it.
-    let mut draw = |p: Vec2, q: Vec2| {
+    // Directions then are the table's turned by the pose's yaw: one `sin_cos` per scan, not
+    // one per point.
+    let (sy, cy) = then.yaw.sin_cos();
+    let at = |r: f32, u: Vec2| Vec2::new(then.x + r * (u.x * cy - u.y * sy), then.y + r * (u.x * sy + u.y * cy));
+    let bearing_index = |p: Vec2| bins.index(p.y.atan2(p.x));
+    let is_return = |d: f32| d < clip[1];
+    let MoveTable { centre, edge, points, .. } = table;
+    // Each return's centre point now and its bin: both ends of the segments to its neighbours.
+    for ((point, &d), &u) in points.iter_mut().zip(then_ranges).zip(centre.iter()) {
+        if is_return(d) {
+            let p = at(d, u);
+            *point = (p, bearing_index(p));
+        }
+    }
+    // Draws the segment p–q (`ip`, `iq`: their bins): the bins whose bearings it crosses read
+    // their distance to it.
+    let mut draw = |(p, ip): (Vec2, f32), (q, iq): (Vec2, f32)| {
         // A pose that is not finite (bad odometry) moves nothing anywhere: the robot's
         // controller reports the bad input, not a panic here.
         if !(p.is_finite() && q.is_finite()) {
             return;
         }
-        let (ip, iq) = (bins.index(p.y.atan2(p.x)), bins.index(q.y.atan2(q.x)));
         // The shorter way round from one end's bearing to the other's.
         let span = (iq - ip).rem_euclid(turn);
         let (lo, span) = if span <= 0.5 * turn { (ip, span) } else { (iq, turn - span) };
@@ -910,8 +931,8 @@ fn move_scan(then_ranges: &[f32], then: &Pose2, clip: [f32; 2], bins: &ScanBins,
                 if j >= n {
                     continue;
                 }
-                let (sj, cj) = (bins.first + i as f32 * bins.width).sin_cos();
-                let den = cj * e.y - sj * e.x;
+                let u = centre[j];
+                let den = u.x * e.y - u.y * e.x;
                 let t = if den.abs() > 1e-6 { (p.x * e.y - p.y * e.x) / den } else { near };
                 out[j] = out[j].min(t.clamp(near, far).clamp(clip[0], clip[1]));
             }
@@ -924,20 +945,65 @@ fn move_scan(then_ranges: &[f32], then: &Pose2, clip: [f32; 2], bins: &ScanBins,
             cover(0.0, lo + span - turn);
         }
     };
-    let is_return = |d: f32| d < clip[1];
     for (k, &d) in then_ranges.iter().enumerate() {
         if !is_return(d) {
             continue;
         }
-        let centre = bins.first + k as f32 * bins.width;
-        draw(to_now(d, centre - 0.5 * bins.width), to_now(d, centre + 0.5 * bins.width));
+        let (l, r) = (at(d, edge[k]), at(d, edge[k + 1]));
+        draw((l, bearing_index(l)), (r, bearing_index(r)));
         let next = if k + 1 < n { Some(k + 1) } else { bins.full.then_some(0) };
         if let Some(m) = next {
             let dm = then_ranges[m];
             if is_return(dm) && (dm - d).abs() <= SURFACE_STEP {
-                draw(to_now(d, centre), to_now(dm, centre + bins.width));
+                draw(points[k], points[m]);
             }
         }
+    }
+}
+
+/// The directions of a lidar term's bins, kept between writes for [`move_scan`] (they change
+/// only with the scanner), and its buffer of a past scan's points.
+#[derive(Clone, Debug)]
+struct MoveTable {
+    /// The bins the table is for (`None` before the first move).
+    bins: Option<ScanBins>,
+    /// `(cos, sin)` of bin k's centre bearing.
+    centre: Vec<Vec2>,
+    /// `(cos, sin)` of the bearing half a bin clockwise of bin k's centre, for k up to the
+    /// number of bins (the last: half a bin counter-clockwise of the last bin's centre).
+    edge: Vec<Vec2>,
+    /// A past scan's centre points in the current scanner frame and their bins (fractional).
+    points: Vec<(Vec2, f32)>,
+}
+
+impl MoveTable {
+    /// An empty table with room for `beams` bins.
+    fn with_capacity(beams: usize) -> Self {
+        Self {
+            bins: None,
+            centre: Vec::with_capacity(beams),
+            edge: Vec::with_capacity(beams + 1),
+            points: Vec::with_capacity(beams),
+        }
+    }
+
+    /// Makes the table hold `bins`' directions (allocates nothing once its capacity holds
+    /// them).
+    fn fit(&mut self, bins: &ScanBins) {
+        if self.bins == Some(*bins) {
+            return;
+        }
+        let dir = |a: f32| {
+            let (s, c) = a.sin_cos();
+            Vec2::new(c, s)
+        };
+        self.bins = Some(*bins);
+        self.centre.clear();
+        self.centre.extend((0..bins.n).map(|k| dir(bins.first + k as f32 * bins.width)));
+        self.edge.clear();
+        self.edge.extend((0..=bins.n).map(|k| dir(bins.first + (k as f32 - 0.5) * bins.width)));
+        self.points.clear();
+        self.points.resize(bins.n, (Vec2::default(), 0.0));
     }
 }
 
@@ -1460,12 +1526,13 @@ mod tests {
         let full: Vec<f32> = vec![1.0; 360];
         let bins = ScanBins::of(&scan_inputs(&full, Pose2::default()), 120);
         let mut out = vec![0.0; 120];
-        move_scan(&ranges, &Pose2::default(), [0.15, 3.0], &bins, &mut out);
+        let mut table = MoveTable::with_capacity(120);
+        move_scan(&ranges, &Pose2::default(), [0.15, 3.0], &bins, &mut table, &mut out);
         for (o, r) in out.iter().zip(&ranges) {
             assert!((o - r).abs() < 1e-4, "{o} against {r}");
         }
         // The scan then was taken facing 5 bins further left: its bin k is bin k + 5 now.
-        move_scan(&ranges, &Pose2::new(0.0, 0.0, 5.0 * bins.width), [0.15, 3.0], &bins, &mut out);
+        move_scan(&ranges, &Pose2::new(0.0, 0.0, 5.0 * bins.width), [0.15, 3.0], &bins, &mut table, &mut out);
         for k in 0..120 {
             assert!((out[(k + 5) % 120] - ranges[k]).abs() < 1e-3, "bin {k}");
         }
@@ -1479,13 +1546,13 @@ mod tests {
         };
         let bins = ScanBins::of(&partial, 120);
         assert!(!bins.full);
-        move_scan(&ranges, &Pose2::new(0.0, 0.0, 5.0 * bins.width), [0.15, 3.0], &bins, &mut out);
+        move_scan(&ranges, &Pose2::new(0.0, 0.0, 5.0 * bins.width), [0.15, 3.0], &bins, &mut table, &mut out);
         assert!(out[..5].iter().all(|&r| r == 3.0), "{:?}", &out[..5]);
         for k in 0..115 {
             assert!((out[k + 5] - ranges[k]).abs() < 1e-3, "bin {k}");
         }
         // A pose that is not finite moves nothing anywhere (and does not panic).
-        move_scan(&ranges, &Pose2::new(f32::NAN, 0.0, 0.0), [0.15, 3.0], &bins, &mut out);
+        move_scan(&ranges, &Pose2::new(f32::NAN, 0.0, 0.0), [0.15, 3.0], &bins, &mut table, &mut out);
         assert!(out.iter().all(|&r| r == 3.0));
     }
 
