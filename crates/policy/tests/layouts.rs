@@ -226,36 +226,41 @@ fn the_simulator_and_the_runner_agree_on_the_path_ahead() {
 
 /// Past scans moved by the robot's motion (`ego_motion`), swept: the runner moves them by the
 /// pose the robot reports, from the lidar's mount (the Burger's sits 3.2 cm behind
-/// `base_link`), as the simulator does by the scanner's pose, so they agree value for value.
+/// `base_link`), as the simulator does by the scanner's pose, so they agree value for value;
+/// among movers, so do the predicted scans (`predict`).
 #[test]
 fn the_simulator_and_the_runner_agree_on_past_scans_moved_by_the_robot() {
-    let mut c = PolicyContract::from_file(&contract_path("article-mlp-133.yaml")).unwrap();
-    c.observation = rlnav_sim::ObservationLayout(vec![
-        ObsTerm::History {
-            term: Box::new(ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.25 }),
-            steps: 3,
-            stride: 2,
-            order: rlnav_sim::task::HistoryOrder::OldestFirst,
-            fill: rlnav_sim::task::HistoryFill::First,
-            ego_motion: true,
-        },
-        ObsTerm::GoalDistance,
-        ObsTerm::GoalBearing,
-    ]);
-    let n = c.observation.len();
-    let spec = ScenarioSpec::load("heldout-static-office").unwrap();
-    let robot = RobotSpec::load("turtlebot3-burger").unwrap();
-    assert!(robot.lidar.mount.x != 0.0);
-    let task = TaskConfig { observation: c.observation.clone(), ..Default::default() };
-    let setup = Arc::new(EnvSetup::new(spec, robot, task).unwrap());
-    c.scan = rlnav_policy::contract::ScanContract::of(&setup.robot.lidar);
-    c.io.recurrent.clear();
-    let net = ActorCritic::seeded(&NetworkConfig { hidden: vec![16], ..Default::default() }, n, 2, &Device::flex(), 2);
-    let proto = export_model(&net, &RunningMeanStd::new(n), &c).unwrap();
-    let mut runner = PolicyRunner::from_proto("ego.onnx", &proto, c).unwrap();
-    let mut env = NavEnv::new(setup, 8).unwrap();
-    let steps = common::runner_matches_simulator(&mut runner, &mut env, "ego_motion");
-    assert!(steps > 20, "{steps} steps compared");
+    for (scenario, predict) in [("heldout-static-office", 0.0), ("heldout-dynamic-office", 1.5)] {
+        let mut c = PolicyContract::from_file(&contract_path("article-mlp-133.yaml")).unwrap();
+        c.observation = rlnav_sim::ObservationLayout(vec![
+            ObsTerm::History {
+                term: Box::new(ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.25 }),
+                steps: 3,
+                stride: 2,
+                order: rlnav_sim::task::HistoryOrder::OldestFirst,
+                fill: rlnav_sim::task::HistoryFill::First,
+                ego_motion: true,
+                predict,
+            },
+            ObsTerm::GoalDistance,
+            ObsTerm::GoalBearing,
+        ]);
+        let n = c.observation.len();
+        let spec = ScenarioSpec::load(scenario).unwrap();
+        let robot = RobotSpec::load("turtlebot3-burger").unwrap();
+        assert!(robot.lidar.mount.x != 0.0);
+        let task = TaskConfig { observation: c.observation.clone(), ..Default::default() };
+        let setup = Arc::new(EnvSetup::new(spec, robot, task).unwrap());
+        c.scan = rlnav_policy::contract::ScanContract::of(&setup.robot.lidar);
+        c.io.recurrent.clear();
+        let net =
+            ActorCritic::seeded(&NetworkConfig { hidden: vec![16], ..Default::default() }, n, 2, &Device::flex(), 2);
+        let proto = export_model(&net, &RunningMeanStd::new(n), &c).unwrap();
+        let mut runner = PolicyRunner::from_proto("ego.onnx", &proto, c).unwrap();
+        let mut env = NavEnv::new(setup, 8).unwrap();
+        let steps = common::runner_matches_simulator(&mut runner, &mut env, scenario);
+        assert!(steps > 20, "{scenario}: {steps} steps compared");
+    }
 }
 
 /// Past scans are moved by bearings counter-clockwise from `angle_min`: a contract whose beams
@@ -271,6 +276,7 @@ fn a_clockwise_scan_with_moved_past_scans_is_refused() {
         order: rlnav_sim::task::HistoryOrder::OldestFirst,
         fill: rlnav_sim::task::HistoryFill::First,
         ego_motion: true,
+        predict: 0.0,
     }]);
     c.validate().unwrap();
     c.scan.direction = rlnav_policy::contract::BeamOrder::Clockwise;

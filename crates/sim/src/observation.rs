@@ -92,6 +92,13 @@ pub enum ObsTerm {
         /// shifts every bin and its drive changes every range.
         #[serde(default, skip_serializing_if = "is_false")]
         ego_motion: bool,
+        /// For a lidar history with `ego_motion`: show one more scan, the current one with
+        /// each moving object carried on at the motion it made since the oldest step shown,
+        /// `predict` times as far ahead as that step lies behind (default 0: none). It
+        /// goes beyond the current step in the history's order (last when oldest first).
+        /// See [`predict_scan`].
+        #[serde(default, skip_serializing_if = "is_zero")]
+        predict: f32,
     },
 }
 
@@ -137,7 +144,7 @@ impl ObsTerm {
     pub fn len(&self) -> usize {
         match self {
             ObsTerm::Lidar { beams, .. } => *beams,
-            ObsTerm::History { term, steps, .. } => steps * term.len(),
+            ObsTerm::History { term, steps, predict, .. } => (steps + usize::from(*predict > 0.0)) * term.len(),
             ObsTerm::PlanAhead { points, .. } => 2 * points,
             _ => 1,
         }
@@ -183,11 +190,16 @@ impl ObsTerm {
             }
             ObsTerm::Lidar { beams, clip, .. } => format!("lidar {beams} beams, clip [{}, {}]", clip[0], clip[1]),
             ObsTerm::PlanAhead { points, spacing } => format!("plan_ahead {points} points, {spacing} m apart"),
-            ObsTerm::History { term, steps, stride, order, fill, ego_motion } => format!(
-                "{} × {steps}{}{}, {}, before the episode: {}",
+            ObsTerm::History { term, steps, stride, order, fill, ego_motion, predict } => format!(
+                "{} × {steps}{}{}{}, {}, before the episode: {}",
                 term.describe(),
                 if *stride > 1 { format!(" every {stride} steps") } else { String::new() },
                 if *ego_motion { ", seen from the current pose" } else { "" },
+                if *predict > 0.0 {
+                    format!(", and predicted {predict}× the history's span ahead")
+                } else {
+                    String::new()
+                },
                 match order {
                     HistoryOrder::OldestFirst => "oldest first",
                     HistoryOrder::NewestFirst => "newest first",
@@ -228,7 +240,19 @@ impl ObsTerm {
                 }
                 Ok(())
             }
-            ObsTerm::History { term, steps, stride, ego_motion, .. } => {
+            ObsTerm::History { term, steps, stride, ego_motion, predict, .. } => {
+                if !(predict.is_finite() && (0.0..=10.0).contains(predict)) {
+                    return Err(Invalid::new(
+                        format!("{key}.history.predict"),
+                        format!("a multiple of the history's span in [0, 10] (0: no predicted scan), got {predict}"),
+                    ));
+                }
+                if *predict > 0.0 && !(*ego_motion && *steps >= 2) {
+                    return Err(Invalid::new(
+                        format!("{key}.history.predict"),
+                        "0 unless the history moves its past scans (ego_motion: true) and shows at least 2 steps",
+                    ));
+                }
                 if *ego_motion && !matches!(**term, ObsTerm::Lidar { .. }) {
                     return Err(Invalid::new(
                         format!("{key}.history.ego_motion"),
@@ -556,6 +580,8 @@ struct Stack {
     newest: Vec<f32>,
     /// The current pose written last (`ego_motion` only).
     newest_pose: Pose2,
+    /// How far ahead a predicted scan is shown, in multiples of the span (0: none).
+    predict: f32,
 }
 
 /// Where a shown step's values are kept.
@@ -597,11 +623,12 @@ impl Stack {
         }
     }
 
-    /// Where chronological step `s` goes among the steps shown (the history's order).
+    /// Where chronological step `s` goes among the steps shown (the history's order); the
+    /// predicted scan, if any, is step `steps`, beyond the current one.
     fn shown_at(&self, s: usize) -> usize {
         match self.order {
             HistoryOrder::OldestFirst => s,
-            HistoryOrder::NewestFirst => self.steps - 1 - s,
+            HistoryOrder::NewestFirst => (self.steps + usize::from(self.predict > 0.0)) - 1 - s,
         }
     }
 
@@ -636,6 +663,9 @@ pub struct ObservationBuilder {
     moved: Vec<f32>,
     /// The bins' directions for moving past scans.
     moves: MoveTable,
+    /// The buffers of a predicted scan and the scan (`predict`).
+    predictor: Predictor,
+    predicted: Vec<f32>,
     sweep: SweepTable,
     /// One per history term, in layout order.
     stacks: Vec<Stack>,
@@ -650,7 +680,7 @@ impl ObservationBuilder {
             .0
             .iter()
             .filter_map(|t| match t {
-                ObsTerm::History { term, steps, stride, order, fill, ego_motion } => Some(Stack {
+                ObsTerm::History { term, steps, stride, order, fill, ego_motion, predict } => Some(Stack {
                     width: term.len(),
                     steps: *steps,
                     stride: *stride,
@@ -665,6 +695,7 @@ impl ObservationBuilder {
                     stored: 0,
                     newest: vec![0.0; term.len()],
                     newest_pose: Pose2::default(),
+                    predict: *predict,
                 }),
                 _ => None,
             })
@@ -675,6 +706,8 @@ impl ObservationBuilder {
             pooled: vec![0.0; beams],
             moved: vec![0.0; beams],
             moves: MoveTable::with_capacity(beams),
+            predictor: Predictor::with_capacity(beams),
+            predicted: vec![0.0; beams],
             sweep: SweepTable { bin_width: f32::NAN, cos_sin: Vec::with_capacity(beams) },
             stacks,
             written: false,
@@ -721,7 +754,7 @@ impl ObservationBuilder {
     /// randomisation; `|| 0.0` for none). Writing again before a commit replaces the current
     /// step's values.
     pub fn write(&mut self, inputs: &ObservationInputs, out: &mut [f32], mut lidar_noise: impl FnMut() -> f32) {
-        let Self { layout, pooled, moved, moves, sweep, stacks, written } = self;
+        let Self { layout, pooled, moved, moves, predictor, predicted, sweep, stacks, written } = self;
         let mut k = 0;
         let mut h = 0;
         for term in &layout.0 {
@@ -738,6 +771,12 @@ impl ObservationBuilder {
                         s.newest_pose = inputs.pose;
                         let bins = ScanBins::of(inputs, beams);
                         let w = s.width;
+                        let predicted = &mut predicted[..beams];
+                        if s.predict > 0.0 {
+                            // Nothing past to tell motion from (the episode's first step): the
+                            // current scan; replaced below from the oldest step shown.
+                            predicted.copy_from_slice(&s.newest);
+                        }
                         for step in 0..s.steps {
                             let d = &mut dst[s.shown_at(step) * w..][..w];
                             match s.slot(step) {
@@ -747,9 +786,21 @@ impl ObservationBuilder {
                                     let then = inputs.pose.inverse().compose(&s.poses[p]);
                                     let moved = &mut moved[..beams];
                                     move_scan(&s.past[p * w..(p + 1) * w], &then, clip, &bins, moves, moved);
+                                    if step == 0 && s.predict > 0.0 {
+                                        // From the oldest step shown, as far back as it lies.
+                                        let elapsed = s.stored - p;
+                                        let ahead = s.predict * ((s.steps - 1) * s.stride) as f32;
+                                        predict_scan(
+                                            &s.newest, moved, elapsed, ahead, clip, &bins, moves, predictor, predicted,
+                                        );
+                                    }
                                     finish_lidar(moved, clip, radius, &bins, sweep, d);
                                 }
                             }
+                        }
+                        if s.predict > 0.0 {
+                            let d = &mut dst[s.shown_at(s.steps) * w..][..w];
+                            finish_lidar(predicted, clip, radius, &bins, sweep, d);
                         }
                     }
                     _ => {
@@ -880,25 +931,46 @@ fn move_scan(
     table: &mut MoveTable,
     out: &mut [f32],
 ) {
+    out.fill(clip[1]);
+    // Directions then are the table's turned by the pose's yaw: one `sin_cos` per scan, not
+    // one per point.
+    let (sy, cy) = then.yaw.sin_cos();
+    let origin = Vec2::new(then.x, then.y);
+    draw_returns(then_ranges, (cy, sy), |_| Some(origin), clip, bins, table, out);
+}
+
+/// Draws the returns of a scan `ranges` (pooled, clipped: `clip[1]` is no return) into `out`
+/// as the current scanner sees them, keeping the nearest: return k lies at `shift(k)` plus its
+/// range along its bin's direction turned by `rot` (`(cos, sin)`); `shift(k)` `None` leaves it
+/// out. Each return is an arc of its bin's width at its range, joined to the next bin's return
+/// by a straight segment when the two are one surface ([`SURFACE_STEP`]) and both are drawn;
+/// every bin whose bearing crosses an arc or segment reads the distance to it along that
+/// bearing. Values clipped to `clip`.
+fn draw_returns(
+    ranges: &[f32],
+    rot: (f32, f32),
+    shift: impl Fn(usize) -> Option<Vec2>,
+    clip: [f32; 2],
+    bins: &ScanBins,
+    table: &mut MoveTable,
+    out: &mut [f32],
+) {
     let n = bins.n;
     table.fit(bins);
-    out.fill(clip[1]);
     // Bins round the whole turn, the wrap included (a partial scan has fewer); `turn`, the
     // same as [`ScanBins::index`] counts it, for bearings (not whole where bins do not divide
     // the turn).
     let round = (std::f32::consts::TAU / bins.width).round() as usize;
     let turn = if bins.full { round as f32 } else { std::f32::consts::TAU / bins.width };
-    // Directions then are the table's turned by the pose's yaw: one `sin_cos` per scan, not
-    // one per point.
-    let (sy, cy) = then.yaw.sin_cos();
-    let at = |r: f32, u: Vec2| Vec2::new(then.x + r * (u.x * cy - u.y * sy), then.y + r * (u.x * sy + u.y * cy));
+    let (c, s) = rot;
+    let at = |r: f32, u: Vec2, o: Vec2| Vec2::new(o.x + r * (u.x * c - u.y * s), o.y + r * (u.x * s + u.y * c));
     let bearing_index = |p: Vec2| bins.index(p.y.atan2(p.x));
     let is_return = |d: f32| d < clip[1];
     let MoveTable { centre, edge, points, .. } = table;
     // Each return's centre point now and its bin: both ends of the segments to its neighbours.
-    for ((point, &d), &u) in points.iter_mut().zip(then_ranges).zip(centre.iter()) {
-        if is_return(d) {
-            let p = at(d, u);
+    for (k, ((point, &d), &u)) in points.iter_mut().zip(ranges).zip(centre.iter()).enumerate() {
+        if let (true, Some(o)) = (is_return(d), shift(k)) {
+            let p = at(d, u, o);
             *point = (p, bearing_index(p));
         }
     }
@@ -945,20 +1017,152 @@ fn move_scan(
             cover(0.0, lo + span - turn);
         }
     };
-    for (k, &d) in then_ranges.iter().enumerate() {
-        if !is_return(d) {
+    for (k, &d) in ranges.iter().enumerate() {
+        let Some(o) = shift(k).filter(|_| is_return(d)) else {
             continue;
-        }
-        let (l, r) = (at(d, edge[k]), at(d, edge[k + 1]));
+        };
+        let (l, r) = (at(d, edge[k], o), at(d, edge[k + 1], o));
         draw((l, bearing_index(l)), (r, bearing_index(r)));
         let next = if k + 1 < n { Some(k + 1) } else { bins.full.then_some(0) };
         if let Some(m) = next {
-            let dm = then_ranges[m];
-            if is_return(dm) && (dm - d).abs() <= SURFACE_STEP {
+            let dm = ranges[m];
+            if is_return(dm) && (dm - d).abs() <= SURFACE_STEP && shift(m).is_some() {
                 draw(points[k], points[m]);
             }
         }
     }
+}
+
+/// Objects in a scan longer than this (m, from end to end) are taken to stand still
+/// ([`predict_scan`]): walls, whose visible stretch changes as the robot drives; a cart or a
+/// person is shorter.
+const MOVER_EXTENT: f32 = 1.0;
+
+/// An object is matched to the one in the older scan whose centre lies nearest, within this
+/// (m, over the span between the two scans; [`predict_scan`]).
+const MATCH_RADIUS: f32 = 0.5;
+
+/// An object whose centre moved less than this (m) between the two scans stands still
+/// ([`predict_scan`]): a centre shifts a little as the robot sees the object from elsewhere.
+const STILL: f32 = 0.05;
+
+/// One object of a scan: a run of returns on one surface ([`SURFACE_STEP`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct Segment {
+    /// Its first and last bin.
+    first: usize,
+    last: usize,
+    /// Mean of its returns' points (scanner frame).
+    centre: Vec2,
+    /// Distance between its end points (m).
+    extent: f32,
+}
+
+/// Buffers of [`predict_scan`], kept with the builder.
+#[derive(Clone, Debug)]
+struct Predictor {
+    now: Vec<Segment>,
+    then: Vec<Segment>,
+    /// Where each current return will be, less where it is (`None`: it stands still).
+    shift: Vec<Option<Vec2>>,
+}
+
+impl Predictor {
+    fn with_capacity(beams: usize) -> Self {
+        Self { now: Vec::with_capacity(beams), then: Vec::with_capacity(beams), shift: Vec::with_capacity(beams) }
+    }
+}
+
+/// Splits the returns of `ranges` (`clip_far`: no return) into [`Segment`]s.
+fn segments(ranges: &[f32], clip_far: f32, centre: &[Vec2], out: &mut Vec<Segment>) {
+    out.clear();
+    let point = |k: usize| centre[k] * ranges[k];
+    let mut k = 0;
+    while k < ranges.len() {
+        if ranges[k] >= clip_far {
+            k += 1;
+            continue;
+        }
+        let first = k;
+        let mut sum = point(k);
+        while k + 1 < ranges.len() && ranges[k + 1] < clip_far && (ranges[k + 1] - ranges[k]).abs() <= SURFACE_STEP {
+            k += 1;
+            sum += point(k);
+        }
+        let centre = sum / (k - first + 1) as f32;
+        out.push(Segment { first, last: k, centre, extent: (point(k) - point(first)).length() });
+        k += 1;
+    }
+}
+
+/// The current scan `now` with its moving objects carried on (pooled, clipped ranges; `then`:
+/// the scan `elapsed` control steps ago, moved into the current pose by [`move_scan`]),
+/// `ahead` control steps ahead, written to `out`.
+///
+/// A lidar sees no velocities; this finds them the way a scan-based obstacle tracker does,
+/// from two scans: each scan is split into objects (runs of returns on one surface), each
+/// object now no longer than [`MOVER_EXTENT`] is matched to the object then whose centre lies
+/// nearest within [`MATCH_RADIUS`], and one whose centre moved by [`STILL`] or more is taken
+/// to keep that motion. Its returns are drawn where they will be ([`draw_returns`]); bins it
+/// leaves read `clip[1]` (what stands behind it is not seen), every other bin reads `now`.
+/// Walls, posts and furniture stand still once the past scan is moved by the robot's own
+/// motion, so only movers move; a mover seen only now (it came round a corner) stands still.
+#[allow(clippy::too_many_arguments)]
+fn predict_scan(
+    now: &[f32],
+    then: &[f32],
+    elapsed: usize,
+    ahead: f32,
+    clip: [f32; 2],
+    bins: &ScanBins,
+    table: &mut MoveTable,
+    buffers: &mut Predictor,
+    out: &mut [f32],
+) {
+    table.fit(bins);
+    let Predictor { now: segs_now, then: segs_then, shift } = buffers;
+    segments(now, clip[1], &table.centre, segs_now);
+    segments(then, clip[1], &table.centre, segs_then);
+    shift.clear();
+    shift.resize(now.len(), None);
+    let scale = if elapsed > 0 { ahead / elapsed as f32 } else { 0.0 };
+    // Whether an object now may be one that moves: short, not cut by the end of the range or
+    // hidden in part behind something nearer (its visible stretch changes as the robot moves,
+    // and its centre with it), and not where the scan then saw it (on most of its bins the past
+    // scan, moved, reads what the current one does).
+    let may_move = |seg: &Segment| {
+        let (a, b) = (now[seg.first], now[seg.last]);
+        let hidden = |k: Option<usize>, r: f32| k.is_some_and(|k| now[k] < r - SURFACE_STEP);
+        let before = if seg.first > 0 { Some(seg.first - 1) } else { bins.full.then_some(now.len() - 1) };
+        let after = if seg.last + 1 < now.len() { Some(seg.last + 1) } else { bins.full.then_some(0) };
+        let same = (seg.first..=seg.last).filter(|&k| (now[k] - then[k]).abs() < STILL).count();
+        seg.extent <= MOVER_EXTENT
+            && a.max(b) < clip[1] - SURFACE_STEP
+            && !hidden(before, a)
+            && !hidden(after, b)
+            && 2 * same < seg.last - seg.first + 1
+    };
+    for seg in segs_now.iter().filter(|s| may_move(s)) {
+        let nearest = segs_then
+            .iter()
+            .filter(|t| t.extent <= MOVER_EXTENT + SURFACE_STEP)
+            .map(|t| (seg.centre - t.centre).length())
+            .fold(f32::INFINITY, f32::min);
+        if (STILL..=MATCH_RADIUS).contains(&nearest) {
+            let moved = segs_then
+                .iter()
+                .filter(|t| t.extent <= MOVER_EXTENT + SURFACE_STEP)
+                .map(|t| seg.centre - t.centre)
+                .find(|d| d.length() == nearest)
+                .expect("the nearest was found above");
+            shift[seg.first..=seg.last].fill(Some(moved * scale));
+        }
+    }
+    for (o, (&r, s)) in out.iter_mut().zip(now.iter().zip(shift.iter())) {
+        *o = if s.is_some() { clip[1] } else { r };
+    }
+    let shift = &*shift;
+    draw_returns(now, (1.0, 0.0), |k| shift[k], clip, bins, table, out);
 }
 
 /// The directions of a lidar term's bins, kept between writes for [`move_scan`] (they change
@@ -1081,7 +1285,7 @@ fn free_travel(ranges: &[f32], far: f32, radius: f32, full: bool, cos_sin: &[(f3
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{from_yaml_str, to_yaml_string};
+    use crate::config::{ConfigError, from_yaml_str, to_yaml_string};
     use crate::geometry::{Pose2, Vec2};
 
     fn inputs(ranges: &[f32], d: f32, b: f32) -> ObservationInputs<'_> {
@@ -1100,7 +1304,7 @@ mod tests {
     }
 
     fn history(term: ObsTerm, steps: usize, order: HistoryOrder, fill: HistoryFill) -> ObsTerm {
-        ObsTerm::History { term: Box::new(term), steps, stride: 1, order, fill, ego_motion: false }
+        ObsTerm::History { term: Box::new(term), steps, stride: 1, order, fill, ego_motion: false, predict: 0.0 }
     }
 
     /// The observation of a scan `f(bearing)` mirrored equals the observation of the mirrored
@@ -1306,6 +1510,7 @@ mod tests {
                 order,
                 fill,
                 ego_motion: false,
+                predict: 0.0,
             }])
         };
         let layout = strided(HistoryOrder::OldestFirst, HistoryFill::First);
@@ -1440,6 +1645,11 @@ mod tests {
     /// Ranges of a 360-beam full turn from `pose` inside the rectangle `[0, 4] × [0, 3]`
     /// (every wall seen from everywhere inside), plus a post of radius 0.1 at (2.5, 1.2).
     fn room_scan(pose: &Pose2) -> Vec<f32> {
+        room_scan_with(pose, Vec2::new(2.5, 1.2), 0.1)
+    }
+
+    /// [`room_scan`] with the post at `post`, of radius `radius`.
+    fn room_scan_with(pose: &Pose2, post: Vec2, radius: f32) -> Vec<f32> {
         let spec = LidarSpec::default();
         (0..spec.beams)
             .map(|i| {
@@ -1453,11 +1663,11 @@ mod tests {
                     }
                 }
                 // The post: the ray's nearer crossing of the circle, if any.
-                let (ox, oy) = (2.5 - pose.x, 1.2 - pose.y);
+                let (ox, oy) = (post.x - pose.x, post.y - pose.y);
                 let along = ox * c + oy * s;
                 let off2 = ox * ox + oy * oy - along * along;
-                if along > 0.0 && off2 < 0.01 {
-                    t = t.min(along - (0.01 - off2).sqrt());
+                if along > 0.0 && off2 < radius * radius {
+                    t = t.min(along - (radius * radius - off2).sqrt());
                 }
                 t
             })
@@ -1492,6 +1702,7 @@ mod tests {
                 order: HistoryOrder::OldestFirst,
                 fill: HistoryFill::First,
                 ego_motion,
+                predict: 0.0,
             }])
         };
         let then = Pose2::new(1.2, 1.0, 0.3);
@@ -1516,6 +1727,110 @@ mod tests {
             assert!(seen.len() > 80, "{}", seen.len());
             assert!(m + 2 >= seen.len(), "sweep {sweep}: {m} of {} moved bins agree with the current scan", seen.len());
             assert!(2 * p < seen.len(), "sweep {sweep}: {p} of {} unmoved bins agree", seen.len());
+        }
+    }
+
+    /// A history with `predict` and its last slot.
+    fn predicting(predict: f32, order: HistoryOrder) -> ObservationLayout {
+        ObservationLayout(vec![ObsTerm::History {
+            term: Box::new(ObsTerm::Lidar { beams: 120, clip: [0.15, 3.0], sweep: 0.0 }),
+            steps: 2,
+            stride: 1,
+            order,
+            fill: HistoryFill::First,
+            ego_motion: true,
+            predict,
+        }])
+    }
+
+    /// A cart 0.2 m in radius crossing the room (0.4 m between the two scans) while the robot
+    /// drives and turns: the predicted scan shows it 0.4 m further on, where a scan with the
+    /// cart there reads it, and every bin away from the cart reads the current scan; with the
+    /// cart standing still, the robot's own motion predicts nothing.
+    #[test]
+    fn a_predicted_scan_carries_a_moving_cart_on_and_keeps_walls_still() {
+        let (then, now) = (Pose2::new(1.0, 1.5, 0.0), Pose2::new(1.25, 1.45, 0.2));
+        let cart = [Vec2::new(2.8, 0.6), Vec2::new(2.8, 1.0), Vec2::new(2.8, 1.4)];
+        let mut builder = ObservationBuilder::new(&predicting(1.0, HistoryOrder::OldestFirst));
+        assert_eq!(builder.layout().len(), 360);
+        let mut out = vec![0.0; 360];
+        let (a, b) = (room_scan_with(&then, cart[0], 0.2), room_scan_with(&now, cart[1], 0.2));
+        // The first step has no past to tell motion from: the prediction is the current scan.
+        builder.write(&scan_inputs(&a, then), &mut out, || 0.0);
+        assert_eq!(out[240..], out[120..240]);
+        builder.commit();
+        builder.write(&scan_inputs(&b, now), &mut out, || 0.0);
+        let future = room_scan_with(&now, cart[2], 0.2);
+        let (current, predicted) = (&out[120..240], &out[240..]);
+        let pooled = |k: usize| b_pooled(&b, k).min(3.0);
+        for (k, c) in current.iter().enumerate() {
+            assert!((c - pooled(k)).abs() < 1e-6);
+        }
+        // The bins that see the cart now and where it will be (nearer than the empty room).
+        let empty = room_scan_with(&now, Vec2::new(-10.0, -10.0), 0.1);
+        let sees = |scan: &[f32]| -> Vec<usize> {
+            (0..120).filter(|&k| b_pooled(scan, k) < b_pooled(&empty, k).min(3.0) - 0.05).collect()
+        };
+        let (cart_now, cart_then) = (sees(&b), sees(&future));
+        assert!(cart_now.len() >= 3 && cart_then.len() >= 3, "{cart_now:?} {cart_then:?}");
+        assert!(cart_then.iter().any(|k| !cart_now.contains(k)), "the cart moves to other bins");
+        // All but an edge bin read the cart where it will be: its centre is estimated from the
+        // side it shows, so its motion a little short.
+        let hit = cart_then.iter().filter(|&&k| (predicted[k] - b_pooled(&future, k)).abs() < 0.1).count();
+        assert!(hit + 1 >= cart_then.len(), "{hit} of {} bins read the cart where it will be", cart_then.len());
+        // The bins it leaves (all but an edge bin, as above) are not read as blocked; the rest
+        // read the current scan exactly.
+        let left: Vec<usize> = cart_now.iter().copied().filter(|k| !cart_then.contains(k)).collect();
+        let freed = left.iter().filter(|&&k| predicted[k] > current[k] + 0.1).count();
+        assert!(!left.is_empty() && freed + 1 >= left.len(), "{freed} of the {} bins it leaves are free", left.len());
+        for k in (0..120).filter(|k| !cart_now.contains(k) && !cart_then.contains(k)) {
+            assert_eq!(predicted[k], current[k], "bin {k}");
+        }
+        // The cart standing still at its current place: nothing is predicted to move.
+        let mut still = ObservationBuilder::new(&predicting(1.0, HistoryOrder::OldestFirst));
+        still.write(&scan_inputs(&room_scan_with(&then, cart[1], 0.2), then), &mut out, || 0.0);
+        still.commit();
+        still.write(&scan_inputs(&b, now), &mut out, || 0.0);
+        assert_eq!(out[240..], out[120..240]);
+        // Newest first, the predicted scan goes first.
+        let mut newest = ObservationBuilder::new(&predicting(1.0, HistoryOrder::NewestFirst));
+        let mut other = vec![0.0; 360];
+        newest.write(&scan_inputs(&a, then), &mut other, || 0.0);
+        newest.commit();
+        newest.write(&scan_inputs(&b, now), &mut other, || 0.0);
+        builder.reset();
+        builder.write(&scan_inputs(&a, then), &mut out, || 0.0);
+        builder.commit();
+        builder.write(&scan_inputs(&b, now), &mut out, || 0.0);
+        assert_eq!(other[..120], out[240..]);
+        assert_eq!(other[120..240], out[120..240]);
+        assert_eq!(other[240..], out[..120]);
+    }
+
+    #[test]
+    fn predict_reads_and_writes_as_yaml_and_is_checked() {
+        let yaml = "- history: {term: {lidar: {beams: 120, clip: [0.15, 3.0]}}, steps: 3, stride: 3, order: oldest_first, ego_motion: true, predict: 2.0}";
+        let t: ObservationLayout = from_yaml_str("t.yaml", yaml).unwrap();
+        assert!(matches!(t.0[0], ObsTerm::History { predict: 2.0, .. }));
+        assert_eq!(t.len(), 480);
+        assert!(t.0[0].describe().contains("predicted 2× the history's span ahead"), "{}", t.0[0].describe());
+        let back: ObservationLayout = from_yaml_str("t.yaml", &to_yaml_string(&t)).unwrap();
+        assert_eq!(back, t);
+        // Without it nothing is written.
+        assert!(!to_yaml_string(&predicting(0.0, HistoryOrder::OldestFirst)).contains("predict"));
+        for (bad, why) in [
+            (yaml.replace("ego_motion: true", "ego_motion: false"), "ego_motion: true"),
+            (yaml.replace("steps: 3", "steps: 1"), "at least 2 steps"),
+            (yaml.replace("predict: 2.0", "predict: -1.0"), "[0, 10]"),
+            (yaml.replace("predict: 2.0", "predict: .nan"), "[0, 10]"),
+        ] {
+            match from_yaml_str::<ObservationLayout>("t.yaml", &bad) {
+                Err(ConfigError::Invalid { key, expected, .. }) => {
+                    assert_eq!(key, "observation[0].history.predict");
+                    assert!(expected.contains(why), "{expected}");
+                }
+                other => panic!("{bad}: {other:?}"),
+            }
         }
     }
 
@@ -1572,6 +1887,7 @@ mod tests {
             order: HistoryOrder::OldestFirst,
             fill: HistoryFill::First,
             ego_motion: true,
+            predict: 0.0,
         }]);
         let err = bad.check().unwrap_err();
         assert_eq!(err.key, "observation[0].history.ego_motion");

@@ -1793,6 +1793,7 @@ mod tests {
                 order: HistoryOrder::OldestFirst,
                 fill: HistoryFill::First,
                 ego_motion: false,
+                predict: 0.0,
             },
             ObsTerm::History {
                 term: Box::new(ObsTerm::Linear),
@@ -1801,6 +1802,7 @@ mod tests {
                 order: HistoryOrder::NewestFirst,
                 fill: HistoryFill::Zero,
                 ego_motion: false,
+                predict: 0.0,
             },
             ObsTerm::Lateral,
         ]);

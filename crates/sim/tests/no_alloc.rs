@@ -61,8 +61,9 @@ fn stepping_does_not_allocate() {
     assert_eq!(MINE.with(|c| c.get()) - before, 0, "NavEnv step/reset allocated");
 
     // A layout with history terms (the article's 133 values), the path ahead, a swept scan and
-    // past scans moved by the robot's motion: its past is kept in place, the points, the
-    // sweep's table and the moved scan in preallocated buffers.
+    // past scans moved by the robot's motion and a predicted scan: its past is kept in place,
+    // the points, the sweep's table, the moved scan and the predicted scan's objects in
+    // preallocated buffers.
     let spec = ScenarioSpec::load("static-room").unwrap();
     let robot = RobotSpec::load(&spec.robot).unwrap();
     let history = |term| ObsTerm::History {
@@ -72,10 +73,11 @@ fn stepping_does_not_allocate() {
         order: HistoryOrder::OldestFirst,
         fill: HistoryFill::First,
         ego_motion: false,
+        predict: 0.0,
     };
     let observation = ObservationLayout(vec![
         ObsTerm::Lidar { beams: 120, clip: [0.15, 2.0], sweep: 0.25 },
-        // Past scans moved by the robot's motion, then swept.
+        // Past scans moved by the robot's motion, then swept, and the scan predicted.
         ObsTerm::History {
             term: Box::new(ObsTerm::Lidar { beams: 60, clip: [0.15, 3.0], sweep: 0.25 }),
             steps: 3,
@@ -83,6 +85,7 @@ fn stepping_does_not_allocate() {
             order: HistoryOrder::OldestFirst,
             fill: HistoryFill::First,
             ego_motion: true,
+            predict: 1.0,
         },
         history(ObsTerm::GoalBearing),
         history(ObsTerm::GoalDistance),
@@ -93,7 +96,7 @@ fn stepping_does_not_allocate() {
     ]);
     let task = TaskConfig { observation, ..Default::default() };
     let mut env = NavEnv::new(Arc::new(EnvSetup::new(spec, robot, task).unwrap()), 3).unwrap();
-    let mut obs = vec![0.0; 321];
+    let mut obs = vec![0.0; 381];
     let before = MINE.with(|c| c.get());
     for i in 0..2000 {
         // Every other step without a write: the step records its observation itself.
