@@ -249,9 +249,10 @@ fn term_bounds(term: &ObsTerm, task: &rlnav_sim::TaskConfig, low: &mut Vec<f32>,
         // An episode starts with the zero command, which may lie outside the action's range.
         ObsTerm::LastLinear => push(task.action.linear[0].min(0.0), task.action.linear[1].max(0.0), 1),
         ObsTerm::LastAngular => push(task.action.angular[0].min(0.0), task.action.angular[1].max(0.0), 1),
-        ObsTerm::History { term, steps, .. } => {
-            for _ in 0..*steps {
-                term_bounds(term, task, low, high);
+        // Each step shown, and a predicted scan, reads as the term does.
+        ObsTerm::History { term: inner, .. } => {
+            for _ in 0..term.slots() {
+                term_bounds(inner, task, low, high);
             }
         }
         other => push(f32::NEG_INFINITY, f32::INFINITY, other.len()),

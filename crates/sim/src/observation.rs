@@ -93,10 +93,13 @@ pub enum ObsTerm {
         #[serde(default, skip_serializing_if = "is_false")]
         ego_motion: bool,
         /// For a lidar history with `ego_motion`: show one more scan, the current one with
-        /// each moving object carried on at the motion it made since the oldest step shown,
-        /// `predict` times as far ahead as that step lies behind (default 0: none). It
-        /// goes beyond the current step in the history's order (last when oldest first).
-        /// See [`predict_scan`].
+        /// each moving object carried on at the motion per step it made since the oldest step
+        /// shown, `predict` times the history's span ahead ((steps − 1) × stride control
+        /// steps; default 0: none). Early in an episode, with fewer steps stored, the motion
+        /// is measured from the oldest stored (`fill: first`) or not at all (`fill: zero`,
+        /// until the oldest step shown is stored: the current scan). It goes beyond the
+        /// current step in the history's order (last when oldest first). See
+        /// [`predict_scan`].
         #[serde(default, skip_serializing_if = "is_zero")]
         predict: f32,
     },
@@ -144,8 +147,17 @@ impl ObsTerm {
     pub fn len(&self) -> usize {
         match self {
             ObsTerm::Lidar { beams, .. } => *beams,
-            ObsTerm::History { term, steps, predict, .. } => (steps + usize::from(*predict > 0.0)) * term.len(),
+            ObsTerm::History { term, .. } => self.slots() * term.len(),
             ObsTerm::PlanAhead { points, .. } => 2 * points,
+            _ => 1,
+        }
+    }
+
+    /// How many sets of its inner term's values the term shows: a history's steps, and one
+    /// more for its predicted scan (`predict`); 1 for a term that is not a history.
+    pub fn slots(&self) -> usize {
+        match self {
+            ObsTerm::History { steps, predict, .. } => steps + usize::from(*predict > 0.0),
             _ => 1,
         }
     }
@@ -442,8 +454,9 @@ impl ObservationLayout {
         let mut sign = Vec::with_capacity(self.len());
         let mut max_bin_error = 0.0f32;
         for (start, term) in self.spans() {
+            // A predicted scan mirrors as the scans do.
             let (inner, steps) = match term {
-                ObsTerm::History { term, steps, .. } => (&**term, *steps),
+                ObsTerm::History { term: inner, .. } => (&**inner, term.slots()),
                 t => (t, 1),
             };
             // The map of one value of `inner`, relative to its first index.
@@ -773,8 +786,9 @@ impl ObservationBuilder {
                         let w = s.width;
                         let predicted = &mut predicted[..beams];
                         if s.predict > 0.0 {
-                            // Nothing past to tell motion from (the episode's first step): the
-                            // current scan; replaced below from the oldest step shown.
+                            // Nothing past to tell motion from (the episode's first step, or the
+                            // oldest step shown not yet stored with `fill: zero`): the current
+                            // scan; replaced below from the oldest step shown.
                             predicted.copy_from_slice(&s.newest);
                         }
                         for step in 0..s.steps {
@@ -1026,7 +1040,8 @@ fn draw_returns(
         let next = if k + 1 < n { Some(k + 1) } else { bins.full.then_some(0) };
         if let Some(m) = next {
             let dm = ranges[m];
-            if is_return(dm) && (dm - d).abs() <= SURFACE_STEP && shift(m).is_some() {
+            // One surface, moved alike (a predicted scan's object split at the wrap is not).
+            if is_return(dm) && (dm - d).abs() <= SURFACE_STEP && shift(m) == Some(o) {
                 draw(points[k], points[m]);
             }
         }
@@ -1813,6 +1828,10 @@ mod tests {
         let t: ObservationLayout = from_yaml_str("t.yaml", yaml).unwrap();
         assert!(matches!(t.0[0], ObsTerm::History { predict: 2.0, .. }));
         assert_eq!(t.len(), 480);
+        // The predicted scan mirrors as the scans do (a map of every value).
+        let m = t.mirror(&LidarSpec::default()).unwrap();
+        assert_eq!(m.source.len(), 480);
+        assert_eq!(m.source[360..].iter().map(|i| i - 360).collect::<Vec<_>>(), m.source[..120]);
         assert!(t.0[0].describe().contains("predicted 2× the history's span ahead"), "{}", t.0[0].describe());
         let back: ObservationLayout = from_yaml_str("t.yaml", &to_yaml_string(&t)).unwrap();
         assert_eq!(back, t);
