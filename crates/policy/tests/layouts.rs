@@ -24,6 +24,18 @@ fn contract_path(name: &str) -> PathBuf {
 const LAYOUTS: [(&str, usize, usize, bool); 2] =
     [("article-mlp-133.yaml", 133, 120, false), ("article-lstm-73.yaml", 73, 60, true)];
 
+/// A runner of a small random network under contract `c` (given the robot's own scan geometry,
+/// so that the scans need no re-sampling, and no recurrent state) beside an environment of
+/// `setup`: the pair [`common::runner_matches_simulator`] compares. `name` names the model.
+fn runner_beside(mut c: PolicyContract, setup: Arc<EnvSetup>, name: &str) -> (PolicyRunner, NavEnv) {
+    let n = c.observation.len();
+    c.scan = rlnav_policy::contract::ScanContract::of(&setup.robot.lidar);
+    c.io.recurrent.clear();
+    let net = ActorCritic::seeded(&NetworkConfig { hidden: vec![16], ..Default::default() }, n, 2, &Device::flex(), 2);
+    let proto = export_model(&net, &RunningMeanStd::new(n), &c).unwrap();
+    (PolicyRunner::from_proto(name, &proto, c).unwrap(), NavEnv::new(setup, 8).unwrap())
+}
+
 #[test]
 fn every_side_contract_loads_and_the_new_layouts_have_their_length() {
     let mut names = Vec::new();
@@ -171,15 +183,7 @@ fn the_simulator_trains_on_what_the_runner_builds_for_the_history_layouts() {
         let task = TaskConfig { observation: contract.observation.clone(), ..Default::default() };
         let setup = Arc::new(EnvSetup::new(spec, robot, task).unwrap());
         assert_eq!(setup.obs_dim(), n);
-        // The robot's own scan geometry, so that the scans need no re-sampling.
-        let mut c = contract.clone();
-        c.scan = rlnav_policy::contract::ScanContract::of(&setup.robot.lidar);
-        c.io.recurrent.clear();
-        let net =
-            ActorCritic::seeded(&NetworkConfig { hidden: vec![16], ..Default::default() }, n, 2, &Device::flex(), 2);
-        let proto = export_model(&net, &RunningMeanStd::new(n), &c).unwrap();
-        let mut runner = PolicyRunner::from_proto("sim.onnx", &proto, c).unwrap();
-        let mut env = NavEnv::new(setup, 8).unwrap();
+        let (mut runner, mut env) = runner_beside(contract, setup, "sim.onnx");
         let steps = common::runner_matches_simulator(&mut runner, &mut env, file);
         assert!(steps > 20, "{file}: {steps} steps compared");
     }
@@ -206,13 +210,7 @@ fn the_simulator_and_the_runner_agree_on_the_path_ahead() {
         let robot = RobotSpec::load("jetbot").unwrap();
         let task = TaskConfig { observation: c.observation.clone(), plan: c.plan.clone(), ..Default::default() };
         let setup = Arc::new(EnvSetup::new(spec, robot, task).unwrap());
-        c.scan = rlnav_policy::contract::ScanContract::of(&setup.robot.lidar);
-        c.io.recurrent.clear();
-        let net =
-            ActorCritic::seeded(&NetworkConfig { hidden: vec![16], ..Default::default() }, n, 2, &Device::flex(), 2);
-        let proto = export_model(&net, &RunningMeanStd::new(n), &c).unwrap();
-        let mut runner = PolicyRunner::from_proto("ahead.onnx", &proto, c).unwrap();
-        let mut env = NavEnv::new(setup, 8).unwrap();
+        let (mut runner, mut env) = runner_beside(c, setup, "ahead.onnx");
         assert_eq!(env.plan().is_empty(), !plan, "{scenario}");
         let mut obs = vec![0.0; n];
         env.write_observation(&mut obs);
@@ -245,19 +243,12 @@ fn the_simulator_and_the_runner_agree_on_past_scans_moved_by_the_robot() {
             ObsTerm::GoalDistance,
             ObsTerm::GoalBearing,
         ]);
-        let n = c.observation.len();
         let spec = ScenarioSpec::load(scenario).unwrap();
         let robot = RobotSpec::load("turtlebot3-burger").unwrap();
         assert!(robot.lidar.mount.x != 0.0);
         let task = TaskConfig { observation: c.observation.clone(), ..Default::default() };
         let setup = Arc::new(EnvSetup::new(spec, robot, task).unwrap());
-        c.scan = rlnav_policy::contract::ScanContract::of(&setup.robot.lidar);
-        c.io.recurrent.clear();
-        let net =
-            ActorCritic::seeded(&NetworkConfig { hidden: vec![16], ..Default::default() }, n, 2, &Device::flex(), 2);
-        let proto = export_model(&net, &RunningMeanStd::new(n), &c).unwrap();
-        let mut runner = PolicyRunner::from_proto("ego.onnx", &proto, c).unwrap();
-        let mut env = NavEnv::new(setup, 8).unwrap();
+        let (mut runner, mut env) = runner_beside(c, setup, "ego.onnx");
         let steps = common::runner_matches_simulator(&mut runner, &mut env, scenario);
         assert!(steps > 20, "{scenario}: {steps} steps compared");
     }

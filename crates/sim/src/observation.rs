@@ -595,6 +595,8 @@ struct Stack {
     newest_pose: Pose2,
     /// How far ahead a predicted scan is shown, in multiples of the span (0: none).
     predict: f32,
+    /// Sets of values shown: `steps`, and the predicted scan ([`ObsTerm::slots`]).
+    slots: usize,
 }
 
 /// Where a shown step's values are kept.
@@ -641,7 +643,7 @@ impl Stack {
     fn shown_at(&self, s: usize) -> usize {
         match self.order {
             HistoryOrder::OldestFirst => s,
-            HistoryOrder::NewestFirst => (self.steps + usize::from(self.predict > 0.0)) - 1 - s,
+            HistoryOrder::NewestFirst => self.slots - 1 - s,
         }
     }
 
@@ -709,6 +711,7 @@ impl ObservationBuilder {
                     newest: vec![0.0; term.len()],
                     newest_pose: Pose2::default(),
                     predict: *predict,
+                    slots: t.slots(),
                 }),
                 _ => None,
             })
@@ -1161,15 +1164,9 @@ fn predict_scan(
         let nearest = segs_then
             .iter()
             .filter(|t| t.extent <= MOVER_EXTENT + SURFACE_STEP)
-            .map(|t| (seg.centre - t.centre).length())
-            .fold(f32::INFINITY, f32::min);
-        if (STILL..=MATCH_RADIUS).contains(&nearest) {
-            let moved = segs_then
-                .iter()
-                .filter(|t| t.extent <= MOVER_EXTENT + SURFACE_STEP)
-                .map(|t| seg.centre - t.centre)
-                .find(|d| d.length() == nearest)
-                .expect("the nearest was found above");
+            .map(|t| seg.centre - t.centre)
+            .min_by(|a, b| a.length().total_cmp(&b.length()));
+        if let Some(moved) = nearest.filter(|d| (STILL..=MATCH_RADIUS).contains(&d.length())) {
             shift[seg.first..=seg.last].fill(Some(moved * scale));
         }
     }
@@ -1180,8 +1177,8 @@ fn predict_scan(
     draw_returns(now, (1.0, 0.0), |k| shift[k], clip, bins, table, out);
 }
 
-/// The directions of a lidar term's bins, kept between writes for [`move_scan`] (they change
-/// only with the scanner), and its buffer of a past scan's points.
+/// The directions of a lidar term's bins, kept between writes for [`draw_returns`] (a moved or
+/// predicted scan; they change only with the scanner), and its buffer of a scan's points.
 #[derive(Clone, Debug)]
 struct MoveTable {
     /// The bins the table is for (`None` before the first move).
